@@ -1,5 +1,34 @@
-"""jaxclear: differentiable planar multibody dynamics with revolute clearance joints."""
+"""jaxclear: differentiable planar multibody dynamics with revolute clearance joints.
+
+Importing jaxclear turns on float64 in JAX (penetrations of micrometres are differences of
+coordinates of order 0.1 m).
+"""
 
 import jax
 
 jax.config.update("jax_enable_x64", True)
+
+from . import mechanisms as mechanisms  # noqa: E402
+from ._errors import AssemblyError as AssemblyError  # noqa: E402
+from ._errors import ModelError as ModelError  # noqa: E402
+from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._simulate import assemble as assemble  # noqa: E402
+from ._simulate import simulate as simulate  # noqa: E402
+from ._simulate import simulate_batch as simulate_batch  # noqa: E402
+from ._solver import PRESETS as PRESETS  # noqa: E402
+from ._solver import SolverConfig as SolverConfig  # noqa: E402
+from ._trajectory import Trajectory as Trajectory  # noqa: E402
+from .model import AbstractDriver as AbstractDriver  # noqa: E402
+from .model import AbstractForceElement as AbstractForceElement  # noqa: E402
+from .model import AbstractJoint as AbstractJoint  # noqa: E402
+from .model import AppliedForce as AppliedForce  # noqa: E402
+from .model import AppliedTorque as AppliedTorque  # noqa: E402
+from .model import Body as Body  # noqa: E402
+from .model import ConstantSpeedDriver as ConstantSpeedDriver  # noqa: E402
+from .model import FunctionDriver as FunctionDriver  # noqa: E402
+from .model import Mechanism as Mechanism  # noqa: E402
+from .model import RevoluteJoint as RevoluteJoint  # noqa: E402
+from .model import SpringDamper as SpringDamper  # noqa: E402
+from .model import TranslationalJoint as TranslationalJoint  # noqa: E402
+
+__version__ = "0.1.0"

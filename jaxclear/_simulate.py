@@ -1,0 +1,258 @@
+"""``simulate``: integrate a mechanism with diffrax and return a ``Trajectory``."""
+
+from collections.abc import Callable
+from typing import Any
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._checks import is_concrete
+from ._errors import ModelError, SimulationError
+from ._solver import SolverConfig, solver_config
+from ._trajectory import Trajectory
+from .dynamics._assembly import assemble_state, check_assembly
+from .dynamics._equations import evaluate, vector_field
+
+ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
+
+
+def initial_state(mechanism, q0, qd0):
+    """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
+    parts = [q0, qd0] + [e.initial_state(mechanism.index, q0, qd0) for e in mechanism.force_elements]
+    return jnp.concatenate([jnp.reshape(jnp.asarray(p, dtype=float), (-1,)) for p in parts])
+
+
+def assemble(mechanism, t0: float = 0.0):
+    """Consistent initial state y0 of a mechanism at time ``t0`` (eager, with diagnostics).
+
+    Raises:
+        AssemblyError: the geometry does not close, or constraints are redundant/singular.
+    """
+    check_parameters(mechanism)
+    q0, qd0 = check_assembly(mechanism, t0)
+    return initial_state(mechanism, q0, qd0)
+
+
+def check_parameters(mechanism) -> None:
+    """Raise ``ModelError`` naming any non-finite parameter (eager values only)."""
+    leaves = jax.tree_util.tree_flatten_with_path(eqx.filter(mechanism, eqx.is_array))[0]
+    for path, leaf in leaves:
+        if is_concrete(leaf) and not np.all(np.isfinite(np.asarray(leaf))):
+            where = jax.tree_util.keystr(path)
+            raise ModelError(f"mechanism parameter {where} is not finite ({np.asarray(leaf)}); give a finite value.")
+
+
+def _outputs(mechanism, t, y):
+    ev = evaluate(mechanism, t, y)
+    lam = ev["multipliers"]
+    slices = mechanism.constraint_slices
+    if mechanism.driver is not None:
+        torque = -lam[slices[mechanism.driver.name]][0]
+    else:
+        torque = jnp.zeros((), y.dtype)
+    reactions = {j.name: lam[slices[j.name]] for j in mechanism.joints}
+    clearance = {
+        c.name: c.outputs(mechanism.index, ev["q"], ev["qd"], ev["qdd"], t, ev["states"][c.name])
+        for c in mechanism.clearance_joints
+    }
+    phi, phid = ev["phi"], ev["phi_dot"]
+    viol = jnp.max(jnp.abs(phi), initial=0.0)
+    vviol = jnp.max(jnp.abs(phid), initial=0.0)
+    n = mechanism.num_coordinates
+    return dict(
+        qdd=ev["qdd"],
+        internal_state=y[2 * n :],
+        multipliers=lam,
+        input_torque=torque,
+        reactions=reactions,
+        clearance=clearance,
+        constraint_violation=viol,
+        velocity_violation=vviol,
+    )
+
+
+def _value_checks(mechanism, y0):
+    masses = mechanism.mass_diagonal
+    y0 = eqx.error_if(
+        y0, jnp.any(~(masses > 0)), "mass and inertia of every body must be positive and finite (see Body)"
+    )
+    return eqx.error_if(y0, jnp.any(~jnp.isfinite(y0)), "initial state is not finite: check the parameters")
+
+
+@eqx.filter_jit
+def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bool):
+    if y0 is None:
+        q0, qd0, pos_res, _ = assemble_state(mechanism, t0)
+        q0 = eqx.error_if(
+            q0, ~(pos_res < ASSEMBLY_TOLERANCE), "mechanism cannot be assembled: run jaxclear.assemble() for details"
+        )
+        y0 = initial_state(mechanism, q0, qd0)
+    y0 = _value_checks(mechanism, y0)
+    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)])
+    sol = diffrax.diffeqsolve(
+        diffrax.ODETerm(vector_field),
+        config.make_solver(),
+        t0,
+        t1,
+        config.dt0,
+        y0,
+        args=mechanism,
+        saveat=saveat,
+        stepsize_controller=config.make_controller(),
+        max_steps=config.max_steps,
+        throw=False,
+        progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),
+    )
+    ys = sol.ys[0]
+    n = mechanism.num_coordinates
+    out = jax.vmap(lambda t, y: _outputs(mechanism, t, y))(ts, ys)
+    return Trajectory(
+        t=ts,
+        q=ys[:, :n],
+        qd=ys[:, n : 2 * n],
+        qdd=out["qdd"],
+        internal_state=out["internal_state"],
+        multipliers=out["multipliers"],
+        input_torque=out["input_torque"],
+        reactions=out["reactions"],
+        constraint_violation=out["constraint_violation"],
+        velocity_violation=out["velocity_violation"],
+        clearance=out["clearance"],
+        num_steps=sol.stats["num_steps"],
+        num_accepted_steps=sol.stats["num_accepted_steps"],
+        num_rejected_steps=sol.stats["num_rejected_steps"],
+        result=sol.result,
+        t_final=sol.ts[1][-1],
+        y_final=sol.ys[1][-1],
+        mechanism=mechanism,
+    )
+
+
+def _time_grid(t0, t1, ts, num_points):
+    if ts is None:
+        ts = np.linspace(t0, t1, 201 if num_points is None else int(num_points))
+    ts = np.asarray(ts, dtype=float)
+    if ts.ndim != 1 or ts.size < 1:
+        raise ValueError("ts must be a 1-D array of output times.")
+    if np.any(np.diff(ts) < 0) or ts[0] < t0 or ts[-1] > t1 or not np.all(np.isfinite(ts)):
+        raise ValueError(f"ts must be increasing and inside [t0, t1] = [{t0}, {t1}]; got {ts[0]} .. {ts[-1]}.")
+    return jnp.asarray(ts)
+
+
+def simulate(
+    mechanism,
+    t1: float,
+    *,
+    t0: float = 0.0,
+    ts=None,
+    num_points: int | None = None,
+    solver: "str | SolverConfig" = "robust",
+    y0=None,
+    progress: bool = False,
+    throw: bool = True,
+) -> Trajectory:
+    """Simulate a mechanism from ``t0`` to ``t1``.
+
+    The initial state is assembled (consistent positions and velocities, journals centred) unless
+    ``y0`` is given. Compiled once per mechanism topology, solver config and number of output
+    points: new parameter values or end times reuse the compiled code.
+
+    Args:
+        mechanism: a ``Mechanism``.
+        t1: end time, s.
+        t0: start time, s.
+        ts: output times (increasing, inside [t0, t1]); default ``num_points`` uniform points.
+        num_points: number of uniform output points if ``ts`` is not given (default 201).
+        solver: preset name (``"robust"``, ``"fast"``, ``"accurate"``), method name or ``SolverConfig``.
+        y0: initial state (from ``assemble``) to skip assembly.
+        progress: show a progress bar (tqdm) over simulated time.
+        throw: raise ``SimulationError`` if the solve fails (else inspect ``Trajectory.result``).
+
+    Returns:
+        A ``Trajectory``.
+
+    Raises:
+        ModelError: a non-finite or invalid parameter.
+        AssemblyError: the mechanism cannot be assembled.
+        SimulationError: the solver failed (gives the time reached, the state and a fix).
+    """
+    config = solver_config(solver)
+    t0, t1 = float(t0), float(t1)
+    if not (np.isfinite(t1) and t1 > t0):
+        raise ValueError(f"t1 must be finite and greater than t0={t0}, got {t1}.")
+    grid = _time_grid(t0, t1, ts, num_points)
+    if y0 is None:
+        y0 = assemble(mechanism, t0)
+    else:
+        y0 = jnp.asarray(y0, dtype=float)
+        if y0.shape != (mechanism.state_size,):
+            raise ValueError(f"y0 must have shape ({mechanism.state_size},), got {y0.shape}.")
+    traj = _simulate_core(mechanism, grid, jnp.asarray(t0), jnp.asarray(t1), y0, config, progress)
+    if throw and not bool(traj.succeeded):
+        raise failure_error(traj, config)
+    return traj
+
+
+def _result_message(result) -> str:
+    try:
+        return diffrax.RESULTS[result]
+    except Exception:  # message lookup is best effort; the outcome itself is in Trajectory.result
+        return "solver failed"
+
+
+def failure_error(traj: Trajectory, config: SolverConfig) -> SimulationError:
+    """A ``SimulationError`` describing a failed solve: time reached, state, suggested fix."""
+    mech = traj.mechanism
+    n = mech.num_coordinates
+    y = np.asarray(traj.y_final)
+    t = float(traj.t_final)
+    state = {"q": y[:n].tolist(), "qd": y[n : 2 * n].tolist(), "internal": y[2 * n :].tolist()}
+    reason = _result_message(traj.result)
+    if int(traj.num_steps) >= config.max_steps:
+        fix = f"raise max_steps (now {config.max_steps}) or loosen rtol/atol (now {config.rtol}/{config.atol})"
+    elif not np.all(np.isfinite(y)):
+        fix = "the state became non-finite: check parameters, or try the 'robust' implicit solver"
+    elif not config.implicit:
+        fix = "the problem may be stiff (e.g. LuGre friction): use solver='robust' (Kvaerno5)"
+    else:
+        fix = "loosen newton_rtol/newton_atol, loosen rtol, or increase the smoothing widths"
+    coords = ", ".join(f"{b}=({y[3*i]:.6g}, {y[3*i+1]:.6g}, {y[3*i+2]:.6g})" for i, b in enumerate(mech.body_names))
+    return SimulationError(
+        f"simulation failed at t = {t:.9g} s after {int(traj.num_steps)} steps ({reason}). "
+        f"Coordinates (x, y, phi): {coords}. Suggested fix: {fix}.",
+        t=t,
+        state=state,
+    )
+
+
+def simulate_batch(
+    build: Callable[[Any], Any],
+    parameters: Any,
+    t1: float,
+    *,
+    t0: float = 0.0,
+    ts=None,
+    num_points: int | None = None,
+    solver: "str | SolverConfig" = "robust",
+) -> Trajectory:
+    """Simulate many variants of a mechanism in one vectorised (``vmap``) solve.
+
+    Args:
+        build: ``build(p) -> Mechanism`` for one member's parameters ``p`` (a pytree of arrays).
+        parameters: pytree whose leaves have a leading batch axis.
+        t1, t0, ts, num_points, solver: as in ``simulate``.
+
+    Returns:
+        A batched ``Trajectory``. Members that fail do not raise: check ``traj.succeeded`` and
+        ``traj.t_final`` per member.
+    """
+    config = solver_config(solver)
+    grid = _time_grid(float(t0), float(t1), ts, num_points)
+
+    def one(p):
+        return _simulate_core(build(p), grid, jnp.asarray(t0, float), jnp.asarray(t1, float), None, config, False)
+
+    return eqx.filter_vmap(one)(parameters)

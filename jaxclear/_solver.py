@@ -1,0 +1,95 @@
+"""Solver settings: a frozen, static ``SolverConfig`` and named presets.
+
+Changing any setting recompiles (they are static), so build one config and reuse it.
+"""
+
+import dataclasses
+
+import diffrax
+import equinox as eqx
+
+EXPLICIT = {"tsit5": diffrax.Tsit5, "dopri5": diffrax.Dopri5, "dopri8": diffrax.Dopri8, "bosh3": diffrax.Bosh3}
+IMPLICIT = {"kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4, "kvaerno5": diffrax.Kvaerno5}
+METHODS = tuple(EXPLICIT) + tuple(IMPLICIT)
+
+
+class SolverConfig(eqx.Module):
+    """Time-integration settings (all static).
+
+    Attributes:
+        method: diffrax solver name, one of ``METHODS`` (explicit: tsit5, dopri5, dopri8, bosh3;
+            implicit, for stiff problems: kvaerno3, kvaerno4, kvaerno5).
+        rtol, atol: error-control tolerances of the adaptive step (mixed units: m, rad, m/s, ...).
+        max_steps: step budget; contact runs need tens of thousands of steps.
+        dt0: initial step, s (``None``: chosen by diffrax).
+        dtmax: largest step, s (``None``: unbounded).
+        pcoeff, icoeff: PID controller gains (``None``: 0/1 integral controller for explicit
+            methods, 0.3/0.3 for implicit ones, as diffrax recommends).
+        newton_rtol, newton_atol: tolerances of the implicit stage equations (chord iteration).
+            Loose values (≈√rtol) avoid step-size collapse at impacts (MODEL.md §5b).
+    """
+
+    method: str = eqx.field(static=True, default="kvaerno5")
+    rtol: float = eqx.field(static=True, default=1e-6)
+    atol: float = eqx.field(static=True, default=1e-9)
+    max_steps: int = eqx.field(static=True, default=200_000)
+    dt0: float | None = eqx.field(static=True, default=None)
+    dtmax: float | None = eqx.field(static=True, default=None)
+    pcoeff: float | None = eqx.field(static=True, default=None)
+    icoeff: float | None = eqx.field(static=True, default=None)
+    newton_rtol: float = eqx.field(static=True, default=1e-3)
+    newton_atol: float = eqx.field(static=True, default=1e-6)
+
+    def __check_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"solver method {self.method!r} is unknown; choose one of {', '.join(METHODS)}.")
+        for name in ("rtol", "atol", "newton_rtol", "newton_atol"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and value > 0):
+                raise ValueError(f"SolverConfig.{name} must be a positive number, got {value!r}.")
+        if not (isinstance(self.max_steps, int) and self.max_steps > 0):
+            raise ValueError(f"SolverConfig.max_steps must be a positive integer, got {self.max_steps!r}.")
+
+    @property
+    def implicit(self) -> bool:
+        return self.method in IMPLICIT
+
+    def replace(self, **changes) -> "SolverConfig":
+        """Copy with some settings changed."""
+        return dataclasses.replace(self, **changes)
+
+    def make_solver(self):
+        if self.implicit:
+            root = diffrax.VeryChord(rtol=self.newton_rtol, atol=self.newton_atol)
+            return IMPLICIT[self.method](root_finder=root)
+        return EXPLICIT[self.method]()
+
+    def make_controller(self):
+        default_p, default_i = (0.3, 0.3) if self.implicit else (0.0, 1.0)
+        return diffrax.PIDController(
+            rtol=self.rtol,
+            atol=self.atol,
+            pcoeff=default_p if self.pcoeff is None else self.pcoeff,
+            icoeff=default_i if self.icoeff is None else self.icoeff,
+            dtmax=self.dtmax,
+        )
+
+
+PRESETS = {
+    "robust": SolverConfig(method="kvaerno5"),
+    "fast": SolverConfig(method="tsit5"),
+    "accurate": SolverConfig(method="kvaerno5", rtol=1e-9, atol=1e-12, newton_rtol=1e-5, newton_atol=1e-9),
+}
+"""Named presets: ``robust`` (default, L-stable implicit, handles LuGre's stiff state), ``fast``
+(explicit Tsit5, best for frictionless/Coulomb contact and ideal joints), ``accurate`` (tight)."""
+
+
+def solver_config(solver: "str | SolverConfig") -> SolverConfig:
+    """A SolverConfig from a preset name, a method name or a config."""
+    if isinstance(solver, SolverConfig):
+        return solver
+    if solver in PRESETS:
+        return PRESETS[solver]
+    if solver in METHODS:
+        return SolverConfig(method=solver)
+    raise ValueError(f"solver {solver!r} is unknown; choose a preset ({', '.join(PRESETS)}) or a method ({', '.join(METHODS)}).")

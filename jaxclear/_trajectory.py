@@ -1,0 +1,89 @@
+"""The result object of ``simulate``."""
+
+import diffrax
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+
+class Trajectory(eqx.Module):
+    """A simulated trajectory sampled on the output grid.
+
+    Shapes below are for one run; a batched run adds a leading batch axis to every array.
+
+    Attributes:
+        t: saved times (N,), s.
+        q: coordinates (N, 3·bodies): x, y in m, φ in rad, per body in ``mechanism.bodies`` order.
+        qd: velocities (N, 3·bodies), m/s and rad/s.
+        qdd: accelerations (N, 3·bodies), m/s² and rad/s².
+        internal_state: clearance/force-element internal states (N, S) (impact-velocity memory, LuGre z).
+        multipliers: Lagrange multipliers λ (N, m) in ``mechanism.constraint_elements`` row order.
+        input_torque: torque the driver applies to the driven body (N,), N m; positive when it acts
+            in the positive (counter-clockwise) sense, so τ·ω > 0 means the motor does work. Zero
+            without a driver.
+        reactions: per ideal joint, its multipliers (N, k). For a revolute joint this is minus the
+            force (N) that body_j exerts on body_i at the joint (see ``joint_force``).
+        constraint_violation: max |Φ| over constraint rows (N,), m or rad.
+        velocity_violation: max |Φ̇| (N,), m/s or rad/s.
+        clearance: per clearance joint a dict of outputs (eccentricity, penetration, forces, mode).
+        num_steps, num_accepted_steps, num_rejected_steps: solver statistics (scalars).
+        result: diffrax outcome (``diffrax.RESULTS``); success unless the solve failed.
+        t_final: time the solver reached, s (equals the end time on success).
+        y_final: state at ``t_final``.
+        mechanism: the simulated mechanism (names, parameters).
+    """
+
+    t: Float[Array, " N"]
+    q: Float[Array, "N n"]
+    qd: Float[Array, "N n"]
+    qdd: Float[Array, "N n"]
+    internal_state: Float[Array, "N S"]
+    multipliers: Float[Array, "N m"]
+    input_torque: Float[Array, " N"]
+    reactions: dict
+    constraint_violation: Float[Array, " N"]
+    velocity_violation: Float[Array, " N"]
+    clearance: dict
+    num_steps: Int[Array, ""]
+    num_accepted_steps: Int[Array, ""]
+    num_rejected_steps: Int[Array, ""]
+    result: diffrax.RESULTS
+    t_final: Float[Array, ""]
+    y_final: Float[Array, " S"]
+    mechanism: eqx.Module
+
+    @property
+    def succeeded(self):
+        """Boolean (array for batched runs): did the solve reach the end time?"""
+        return self.result == diffrax.RESULTS.successful
+
+    def coordinates(self, body: str) -> Float[Array, "N 3"]:
+        """(x, y, φ) of a body over time."""
+        i = self.mechanism.index(body)
+        return self.q[..., 3 * i : 3 * i + 3]
+
+    def velocities(self, body: str) -> Float[Array, "N 3"]:
+        i = self.mechanism.index(body)
+        return self.qd[..., 3 * i : 3 * i + 3]
+
+    def accelerations(self, body: str) -> Float[Array, "N 3"]:
+        i = self.mechanism.index(body)
+        return self.qdd[..., 3 * i : 3 * i + 3]
+
+    def joint_force(self, joint: str) -> Float[Array, "N 2"]:
+        """Force (N) that body_j exerts on body_i at an ideal revolute joint, global components."""
+        return -self.reactions[joint]
+
+    def joint_force_magnitude(self, joint: str) -> Float[Array, " N"]:
+        return jnp.linalg.norm(self.reactions[joint], axis=-1)
+
+    def stats(self) -> dict:
+        """Solver statistics as Python numbers."""
+        return dict(
+            num_steps=np.asarray(self.num_steps).tolist(),
+            num_accepted_steps=np.asarray(self.num_accepted_steps).tolist(),
+            num_rejected_steps=np.asarray(self.num_rejected_steps).tolist(),
+            t_final=np.asarray(self.t_final).tolist(),
+            succeeded=np.asarray(self.succeeded).tolist(),
+        )

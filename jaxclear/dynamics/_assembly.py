@@ -1,0 +1,103 @@
+"""Consistent initial positions and velocities by Newton iteration (MODEL.md §1, Initial conditions).
+
+Positions: Newton–Raphson on Φ(q, t0) = 0 with least-norm (pseudo-inverse) steps from the bodies'
+initial guesses, so under-constrained mechanisms move as little as possible. Clearance joints take
+part as ideal revolute joints whose journal sits at the given initial eccentricity (centred by
+default). Velocities: the least-norm correction of the guessed q̇ that satisfies Φ_q q̇ = −Φ_t.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import AssemblyError
+from ._constraints import constraints
+
+NEWTON_ITERATIONS = 40
+POSITION_TOLERANCE = 1e-10  # m (or rad): far below any clearance of interest (>= 1 µm)
+RANK_TOLERANCE = 1e-9  # relative singular value below which constraints count as redundant
+
+
+def assembly_constraints(mechanism, q, t):
+    """Φ plus the clearance joints' assembly rows (journal at its initial eccentricity)."""
+    rows = [constraints(mechanism, q, t)]
+    for element in mechanism.force_elements:
+        fn = getattr(element, "assembly_constraint", None)
+        if fn is not None:
+            rows.append(fn(mechanism.index, q, t))
+    return jnp.concatenate(rows)
+
+
+def assembly_labels(mechanism) -> list[str]:
+    """A label per row of ``assembly_constraints``: ``"<joint name> [row k]"``."""
+    labels = []
+    for c in mechanism.constraint_elements:
+        labels += [f"{type(c).__name__} {c.name!r} row {k}" for k in range(c.num_equations)]
+    for e in mechanism.force_elements:
+        if getattr(e, "assembly_constraint", None) is not None:
+            labels += [f"{type(e).__name__} {e.name!r} (centred journal) row {k}" for k in range(2)]
+    return labels
+
+
+def assemble_state(mechanism, t0=0.0):
+    """Pure JAX assembly (jit/vmap/grad friendly).
+
+    Returns:
+        (q0, qd0, position_residual, velocity_residual): residuals are max-abs norms.
+    """
+    t0 = jnp.asarray(t0, dtype=float)
+    q, qd = mechanism.initial_guess()
+
+    def step(_, q):
+        phi = assembly_constraints(mechanism, q, t0)
+        jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
+        return q - jnp.linalg.pinv(jac, rtol=RANK_TOLERANCE) @ phi
+
+    q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, step, q)
+    phi = assembly_constraints(mechanism, q, t0)
+    jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
+    phi_t = jax.jacfwd(assembly_constraints, argnums=2)(mechanism, q, t0)
+    qd = qd - jnp.linalg.pinv(jac, rtol=RANK_TOLERANCE) @ (jac @ qd + phi_t)
+    return q, qd, jnp.max(jnp.abs(phi), initial=0.0), jnp.max(jnp.abs(jac @ qd + phi_t), initial=0.0)
+
+
+def check_assembly(mechanism, t0=0.0):
+    """Eager assembly with diagnostics: raises ``AssemblyError`` naming the failing constraint.
+
+    Returns:
+        (q0, qd0) as JAX arrays.
+
+    Raises:
+        AssemblyError: redundant/singular constraints (names the rows involved), or a geometry
+            that does not close (names the worst constraint and its residual).
+    """
+    q, qd, pos_res, _ = jax.jit(assemble_state)(mechanism, t0)
+    labels = assembly_labels(mechanism)
+    jac = np.asarray(jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, jnp.asarray(t0, float)))
+    phi = np.asarray(assembly_constraints(mechanism, q, jnp.asarray(t0, float)))
+    if jac.shape[0] > jac.shape[1]:
+        raise AssemblyError(
+            f"Mechanism has {jac.shape[0]} constraint equations for {jac.shape[1]} coordinates "
+            "(over-constrained): remove a joint or the driver."
+        )
+    if not np.all(np.isfinite(phi)):
+        raise AssemblyError("Assembly produced non-finite coordinates: check the bodies' initial positions.")
+    if jac.shape[0]:
+        worst = int(np.argmax(np.abs(phi)))
+        if abs(phi[worst]) > POSITION_TOLERANCE * 1e3 or not float(pos_res) < 1e-7:
+            raise AssemblyError(
+                f"Mechanism cannot be assembled: {labels[worst]} is off by {phi[worst]:.6g} m (or rad) after "
+                f"{NEWTON_ITERATIONS} Newton iterations. Check link lengths and joint points (does the "
+                "loop close?) and the bodies' initial position guesses."
+            )
+        u, s, _ = np.linalg.svd(jac)
+        if s[-1] < RANK_TOLERANCE * max(s[0], 1.0):
+            null = u[:, -1]
+            involved = [labels[k] for k in np.argsort(-np.abs(null)) if abs(null[k]) > 1e-3][:6]
+            raise AssemblyError(
+                "Constraints are redundant or singular at the assembled position (Φ_q loses rank, "
+                f"smallest singular value {s[-1]:.3g}); involved: {', '.join(involved)}. Remove a redundant "
+                "joint (e.g. use a translational joint or clearance joint instead) or move the initial "
+                "guess away from a singular (dead-centre) configuration."
+            )
+    return q, qd

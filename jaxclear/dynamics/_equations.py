@@ -1,0 +1,71 @@
+"""Index-1 equations of motion with Baumgarte stabilisation (MODEL.md §1).
+
+    [ M    Φ_qᵀ ] [ q̈ ]   [ Q                 ]
+    [ Φ_q  0    ] [ λ  ] = [ γ − 2αΦ̇ − β²Φ    ]
+
+M is diagonal in Cartesian coordinates, so the multipliers come from the small symmetric
+positive definite Schur complement S = Φ_q M⁻¹ Φ_qᵀ (MODEL.md §5b):
+λ = S⁻¹ (Φ_q M⁻¹ Q − rhs), q̈ = M⁻¹ (Q − Φ_qᵀ λ).
+"""
+
+import jax.numpy as jnp
+import jax.scipy.linalg as jsl
+from jaxtyping import Array, Float
+
+from ._constraints import constraint_jacobian, constraints, gamma
+
+
+def generalized_forces(mechanism, t, q, qd, states: dict) -> Float[Array, " n"]:
+    """Q: gravity plus every force element (applied forces, springs, clearance contacts)."""
+    m = jnp.stack([b.mass for b in mechanism.bodies])
+    grav = jnp.concatenate([m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1)
+    total = grav.reshape(-1).astype(q.dtype)
+    for element in mechanism.force_elements:
+        total = total + element.generalized_force(mechanism.index, q, qd, t, states[element.name])
+    return total
+
+
+def solve_accelerations(mechanism, t, q, qd, forces):
+    """q̈ and λ from the Baumgarte-stabilised index-1 system.
+
+    Returns:
+        (q̈, λ, Φ, Φ̇): accelerations (n,), multipliers (m,), position and velocity residuals (m,).
+    """
+    inv_mass = 1.0 / mechanism.mass_diagonal
+    if mechanism.num_constraints == 0:
+        empty = jnp.zeros((0,), dtype=q.dtype)
+        return inv_mass * forces, empty, empty, empty
+    phi = constraints(mechanism, q, t)
+    phi_q = constraint_jacobian(mechanism, q, t)
+    gam, phi_dot = gamma(mechanism, q, qd, t)
+    alpha, beta = mechanism.baumgarte_alpha, mechanism.baumgarte_beta
+    rhs = gam - 2.0 * alpha * phi_dot - beta**2 * phi
+    a = phi_q * inv_mass[None, :]
+    schur = a @ phi_q.T
+    factor = jsl.cho_factor(schur)
+    lam = jsl.cho_solve(factor, a @ forces - rhs)
+    qdd = inv_mass * (forces - phi_q.T @ lam)
+    return qdd, lam, phi, phi_dot
+
+
+def evaluate(mechanism, t, y):
+    """Everything the right-hand side computes at (t, y), as a dict.
+
+    Keys: ``q, qd, qdd, multipliers, phi, phi_dot, forces, states, state_rates``.
+    """
+    q, qd, states = mechanism.split_state(y)
+    forces = generalized_forces(mechanism, t, q, qd, states)
+    qdd, lam, phi, phi_dot = solve_accelerations(mechanism, t, q, qd, forces)
+    rates = {
+        e.name: e.state_derivative(mechanism.index, q, qd, qdd, t, states[e.name]) for e in mechanism.force_elements
+    }
+    return dict(
+        q=q, qd=qd, qdd=qdd, multipliers=lam, phi=phi, phi_dot=phi_dot, forces=forces, states=states, state_rates=rates
+    )
+
+
+def vector_field(t, y, mechanism) -> Float[Array, " N"]:
+    """dy/dt for diffrax: (q̇, q̈, internal state rates)."""
+    out = evaluate(mechanism, t, y)
+    parts = [out["qd"], out["qdd"]] + [out["state_rates"][e.name] for e in mechanism.force_elements]
+    return jnp.concatenate([jnp.reshape(p, (-1,)).astype(y.dtype) for p in parts])

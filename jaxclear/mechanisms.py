@@ -1,0 +1,152 @@
+"""Benchmark mechanisms: the slider–crank of MODEL.md §6 and a four-bar linkage."""
+
+import jax.numpy as jnp
+
+from ._errors import ModelError
+from .model._body import Body
+from .model._joints import ConstantSpeedDriver, RevoluteJoint, TranslationalJoint
+from .model._mechanism import Mechanism
+
+RPM = 2.0 * jnp.pi / 60.0  # rad/s per rpm
+
+SLIDER_CRANK_JOINTS = ("O", "A", "B")
+"""Revolute joints of the slider–crank: O (ground–crank), A (crank–rod), B (rod–slider)."""
+
+
+def _gravity(gravity: bool | float):
+    g = 9.81 if gravity is True else (0.0 if gravity is False else float(gravity))
+    return (0.0, -g)
+
+
+def slider_crank(
+    *,
+    rpm: float = 5000.0,
+    crank_length: float = 0.05,
+    rod_length: float = 0.12,
+    crank_mass: float = 0.30,
+    rod_mass: float = 0.21,
+    slider_mass: float = 0.14,
+    crank_inertia: float = 1.0e-4,
+    rod_inertia: float = 2.5e-4,
+    slider_inertia: float = 1.0e-4,
+    initial_angle: float = 0.0,
+    gravity: bool | float = False,
+    clearance_joints: dict | None = None,
+) -> Mechanism:
+    """The benchmark slider–crank (MODEL.md §6): crank O–A, connecting rod A–B, slider at B.
+
+    Crank pivot O at the origin, slider on the global x axis through O, crank angle 0 at outer dead
+    centre (slider at x = r + l), centres of mass at link mid-points, crank driven at constant speed.
+
+    Args:
+        rpm: crank speed, rev/min.
+        crank_length, rod_length: r and l, m (l > r).
+        crank_mass, rod_mass, slider_mass: kg. crank_inertia, rod_inertia, slider_inertia: kg m².
+        initial_angle: crank angle at t = 0, rad.
+        gravity: ``True`` for 9.81 m/s² along −y, ``False`` for none, or a magnitude in m/s².
+        clearance_joints: ``{joint name: ClearanceJoint-like factory or None}`` mapping some of
+            ``"O"``, ``"A"``, ``"B"`` to clearance joints (see ``jaxclear.mechanisms.with_clearance``).
+
+    Returns:
+        The ``Mechanism`` with bodies ``crank``, ``rod``, ``slider``; ideal joints ``O``, ``A``,
+        ``B`` (revolute) and ``slider_guide`` (translational); driver ``driver``.
+    """
+    r, l = crank_length, rod_length
+    if isinstance(r, float | int) and isinstance(l, float | int) and not l > r > 0:
+        raise ModelError(
+            f"slider_crank: need rod_length > crank_length > 0, got rod_length={l}, crank_length={r}; "
+            "a shorter rod cannot reach the slider guide at every crank angle."
+        )
+    th = initial_angle
+    c, s = jnp.cos(th), jnp.sin(th)
+    ax, ay = r * c, r * s
+    bx = ax + jnp.sqrt(jnp.maximum(l**2 - ay**2, 0.0))
+    rod_phi = jnp.arctan2(-ay, bx - ax)
+    bodies = (
+        Body("crank", crank_mass, crank_inertia, position=(0.5 * ax, 0.5 * ay, th)),
+        Body("rod", rod_mass, rod_inertia, position=(0.5 * (ax + bx), 0.5 * ay, rod_phi)),
+        Body("slider", slider_mass, slider_inertia, position=(bx, 0.0, 0.0)),
+    )
+    revolute = {
+        "O": RevoluteJoint("O", "ground", (0.0, 0.0), "crank", (-0.5 * r, 0.0)),
+        "A": RevoluteJoint("A", "crank", (0.5 * r, 0.0), "rod", (-0.5 * l, 0.0)),
+        "B": RevoluteJoint("B", "rod", (0.5 * l, 0.0), "slider", (0.0, 0.0)),
+    }
+    clearance = dict(clearance_joints or {})
+    unknown = set(clearance) - set(SLIDER_CRANK_JOINTS)
+    if unknown:
+        raise ModelError(f"slider_crank: clearance joints must be among O, A, B; got {sorted(unknown)}.")
+    joints = tuple(j for name, j in revolute.items() if name not in clearance)
+    guide = TranslationalJoint("slider_guide", "slider", (0.0, 0.0), "ground", (0.0, 0.0), axis=(1.0, 0.0))
+    clearance_elements = tuple(make(revolute[name]) for name, make in clearance.items())
+    return Mechanism(
+        bodies=bodies,
+        joints=(*joints, guide),
+        driver=ConstantSpeedDriver("crank", speed=rpm * RPM, initial_angle=th),
+        clearance_joints=clearance_elements,
+        gravity=_gravity(gravity),
+    )
+
+
+def four_bar(
+    *,
+    ground_length: float = 0.30,
+    crank_length: float = 0.10,
+    coupler_length: float = 0.30,
+    rocker_length: float = 0.25,
+    crank_mass: float = 0.2,
+    coupler_mass: float = 0.5,
+    rocker_mass: float = 0.4,
+    initial_angle: float = jnp.pi / 3,
+    rpm: float | None = 60.0,
+    gravity: bool | float = True,
+    clearance_joints: dict | None = None,
+) -> Mechanism:
+    """A four-bar linkage O2–A–B–O4 with uniform slender links (J = m L²/12).
+
+    Ground pivots O2 at the origin and O4 at (ground_length, 0); crank O2–A, coupler A–B, rocker
+    B–O4; the open (elbow-up) assembly branch. Revolute joints ``O2``, ``A``, ``B``, ``O4``.
+
+    Args:
+        ground_length, crank_length, coupler_length, rocker_length: m.
+        crank_mass, coupler_mass, rocker_mass: kg.
+        initial_angle: crank angle at t = 0, rad.
+        rpm: constant crank speed, or ``None`` for an undriven (free) linkage.
+        gravity: ``True`` (9.81 m/s² along −y), ``False`` or a magnitude.
+        clearance_joints: as in ``slider_crank``, among ``"O2"``, ``"A"``, ``"B"``, ``"O4"``.
+    """
+    d, a, b, c = ground_length, crank_length, coupler_length, rocker_length
+    th = initial_angle
+    ax, ay = a * jnp.cos(th), a * jnp.sin(th)
+    # B: intersection of circles |B - A| = b and |B - O4| = c, upper branch.
+    dx, dy = d - ax, -ay
+    dist = jnp.sqrt(dx**2 + dy**2)
+    along = (b**2 - c**2 + dist**2) / (2 * dist)
+    h = jnp.sqrt(jnp.maximum(b**2 - along**2, 0.0))
+    ex, ey = dx / dist, dy / dist
+    bx, by = ax + along * ex - h * ey, ay + along * ey + h * ex
+    coupler_phi = jnp.arctan2(by - ay, bx - ax)
+    rocker_phi = jnp.arctan2(by, bx - d)
+    bodies = (
+        Body("crank", crank_mass, crank_mass * a**2 / 12, position=(0.5 * ax, 0.5 * ay, th)),
+        Body("coupler", coupler_mass, coupler_mass * b**2 / 12, position=(0.5 * (ax + bx), 0.5 * (ay + by), coupler_phi)),
+        Body("rocker", rocker_mass, rocker_mass * c**2 / 12, position=(0.5 * (d + bx), 0.5 * by, rocker_phi)),
+    )
+    revolute = {
+        "O2": RevoluteJoint("O2", "ground", (0.0, 0.0), "crank", (-0.5 * a, 0.0)),
+        "A": RevoluteJoint("A", "crank", (0.5 * a, 0.0), "coupler", (-0.5 * b, 0.0)),
+        "B": RevoluteJoint("B", "coupler", (0.5 * b, 0.0), "rocker", (0.5 * c, 0.0)),
+        "O4": RevoluteJoint("O4", "ground", (d, 0.0), "rocker", (-0.5 * c, 0.0)),
+    }
+    clearance = dict(clearance_joints or {})
+    unknown = set(clearance) - set(revolute)
+    if unknown:
+        raise ModelError(f"four_bar: clearance joints must be among O2, A, B, O4; got {sorted(unknown)}.")
+    driver = None if rpm is None else ConstantSpeedDriver("crank", speed=rpm * RPM, initial_angle=th)
+    return Mechanism(
+        bodies=bodies,
+        joints=tuple(j for n, j in revolute.items() if n not in clearance),
+        driver=driver,
+        clearance_joints=tuple(make(revolute[n]) for n, make in clearance.items()),
+        gravity=_gravity(gravity),
+    )

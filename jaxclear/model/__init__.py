@@ -1,0 +1,16 @@
+"""Model objects: bodies, joints, drivers, force elements, the mechanism."""
+
+from ._body import GROUND as GROUND
+from ._body import Body as Body
+from ._forces import AbstractForceElement as AbstractForceElement
+from ._forces import AppliedForce as AppliedForce
+from ._forces import AppliedTorque as AppliedTorque
+from ._forces import SpringDamper as SpringDamper
+from ._joints import AbstractDriver as AbstractDriver
+from ._joints import AbstractJoint as AbstractJoint
+from ._joints import ConstantSpeedDriver as ConstantSpeedDriver
+from ._joints import FunctionDriver as FunctionDriver
+from ._joints import RevoluteJoint as RevoluteJoint
+from ._joints import TranslationalJoint as TranslationalJoint
+from ._mechanism import Mechanism as Mechanism
+from ._mechanism import describe as describe

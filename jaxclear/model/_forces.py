@@ -1,0 +1,133 @@
+"""Force elements: applied forces and torques, linear spring–dampers (MODEL.md §1, Q).
+
+A force element contributes a generalised force vector Q (size of q). Elements with internal
+states (clearance joints: impact-velocity memory, LuGre z) declare ``num_states`` and give their
+time derivatives; those states live in the integrator's state vector.
+"""
+
+import abc
+from collections.abc import Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+from .._checks import check_finite, check_shape
+from .._checks import is_concrete
+from .._errors import ModelError
+from ..dynamics._kinematics import point_force_to_generalized, point_position, point_velocity
+
+import numpy as np
+
+
+def _array(x):
+    return jnp.asarray(x, dtype=float)
+
+
+Index = Callable[[str], "int | None"]
+
+
+class AbstractForceElement(eqx.Module):
+    """Base of force elements. Subclass and implement ``generalized_force``."""
+
+    name: eqx.AbstractVar[str]
+
+    @property
+    def num_states(self) -> int:
+        """Number of internal states this element adds to the integrator state (static)."""
+        return 0
+
+    def initial_state(self, index: Index, q, qd) -> Float[Array, " s"]:
+        """Internal state at the start, given assembled q, q̇."""
+        return jnp.zeros((self.num_states,))
+
+    @abc.abstractmethod
+    def generalized_force(self, index: Index, q, qd, t, state) -> Float[Array, " n"]:
+        """Q contribution, same size as q (N, N, N m per body)."""
+
+    def state_derivative(self, index: Index, q, qd, qdd, t, state) -> Float[Array, " s"]:
+        """Time derivative of the internal state; ``qdd`` is this evaluation's acceleration."""
+        return jnp.zeros((self.num_states,))
+
+
+class AppliedForce(AbstractForceElement):
+    """Constant force (global components, N) applied at a body-fixed point (local vector, m)."""
+
+    name: str = eqx.field(static=True)
+    body: str = eqx.field(static=True)
+    point: Float[Array, "2"] = eqx.field(converter=_array)
+    force: Float[Array, "2"] = eqx.field(converter=_array)
+
+    def __check_init__(self):
+        for attr in ("point", "force"):
+            check_shape(f"AppliedForce {self.name!r}", attr, getattr(self, attr), (2,))
+            check_finite(f"AppliedForce {self.name!r}", attr, getattr(self, attr))
+
+    def generalized_force(self, index, q, qd, t, state):
+        i = index(self.body)
+        return point_force_to_generalized(q, i, point_position(q, i, self.point), self.force)
+
+
+class AppliedTorque(AbstractForceElement):
+    """Constant torque on a body, N m (counter-clockwise positive)."""
+
+    name: str = eqx.field(static=True)
+    body: str = eqx.field(static=True)
+    torque: Float[Array, ""] = eqx.field(converter=_array)
+
+    def __check_init__(self):
+        check_finite(f"AppliedTorque {self.name!r}", "torque", self.torque)
+
+    def generalized_force(self, index, q, qd, t, state):
+        i = index(self.body)
+        out = jnp.zeros_like(q)
+        if i is None:
+            return out
+        return out.at[3 * i + 2].add(self.torque)
+
+
+class SpringDamper(AbstractForceElement):
+    """Linear translational spring–damper between two points.
+
+    Force magnitude (tension positive) f = k (ℓ − ℓ0) + c ℓ̇, acting along the line of the points.
+
+    Attributes:
+        stiffness: k, N/m (>= 0). damping: c, N s/m (>= 0). free_length: ℓ0, m (>= 0).
+    """
+
+    name: str = eqx.field(static=True)
+    body_i: str = eqx.field(static=True)
+    point_i: Float[Array, "2"] = eqx.field(converter=_array)
+    body_j: str = eqx.field(static=True)
+    point_j: Float[Array, "2"] = eqx.field(converter=_array)
+    stiffness: Float[Array, ""] = eqx.field(converter=_array)
+    damping: Float[Array, ""] = eqx.field(converter=_array, default=0.0)
+    free_length: Float[Array, ""] = eqx.field(converter=_array, default=0.0)
+
+    def __check_init__(self):
+        owner = f"SpringDamper {self.name!r}"
+        for attr in ("stiffness", "damping", "free_length"):
+            value = getattr(self, attr)
+            check_finite(owner, attr, value)
+            if is_concrete(value) and np.any(np.asarray(value) < 0):
+                raise ModelError(f"{owner}: {attr} must be >= 0, got {np.asarray(value)}.")
+
+    def generalized_force(self, index, q, qd, t, state):
+        i, j = index(self.body_i), index(self.body_j)
+        pi, pj = point_position(q, i, self.point_i), point_position(q, j, self.point_j)
+        vi, vj = point_velocity(q, qd, i, self.point_i), point_velocity(q, qd, j, self.point_j)
+        d = pj - pi
+        length_sq = d @ d
+        safe = length_sq > 0
+        length = jnp.where(safe, jnp.sqrt(jnp.where(safe, length_sq, 1.0)), 0.0)
+        u = jnp.where(safe, d / jnp.where(safe, length, 1.0), 0.0)
+        rate = u @ (vj - vi)
+        tension = self.stiffness * (length - self.free_length) + self.damping * rate
+        f_on_i = tension * u
+        return point_force_to_generalized(q, i, pi, f_on_i) + point_force_to_generalized(q, j, pj, -f_on_i)
+
+    def potential_energy(self, index, q):
+        """Elastic energy ½ k (ℓ − ℓ0)², J."""
+        i, j = index(self.body_i), index(self.body_j)
+        d = point_position(q, j, self.point_j) - point_position(q, i, self.point_i)
+        return 0.5 * self.stiffness * (jnp.sqrt(d @ d) - self.free_length) ** 2
