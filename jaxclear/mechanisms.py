@@ -3,6 +3,7 @@
 import jax.numpy as jnp
 
 from ._errors import ModelError
+from .model._clearance import ClearanceJoint
 from .model._body import Body
 from .model._joints import ConstantSpeedDriver, RevoluteJoint, TranslationalJoint
 from .model._mechanism import Mechanism
@@ -31,7 +32,8 @@ def slider_crank(
     slider_inertia: float = 1.0e-4,
     initial_angle: float = 0.0,
     gravity: bool | float = False,
-    clearance_joints: dict | None = None,
+    clearance_joints=(),
+    **clearance_options,
 ) -> Mechanism:
     """The benchmark slider–crank (MODEL.md §6): crank O–A, connecting rod A–B, slider at B.
 
@@ -44,8 +46,12 @@ def slider_crank(
         crank_mass, rod_mass, slider_mass: kg. crank_inertia, rod_inertia, slider_inertia: kg m².
         initial_angle: crank angle at t = 0, rad.
         gravity: ``True`` for 9.81 m/s² along −y, ``False`` for none, or a magnitude in m/s².
-        clearance_joints: ``{joint name: ClearanceJoint-like factory or None}`` mapping some of
-            ``"O"``, ``"A"``, ``"B"`` to clearance joints (see ``jaxclear.mechanisms.with_clearance``).
+        clearance_joints: which of ``"O"``, ``"A"``, ``"B"`` have clearance: a sequence of names
+            (e.g. ``("O", "A", "B")`` or ``"B"``), or a mapping ``{name: dict of options}`` for
+            per-joint options.
+        **clearance_options: options shared by every clearance joint, passed to
+            ``ClearanceJoint.replacing``: ``clearance`` (m, default 0.5 mm with R_B = 10 mm),
+            ``geometry``, ``contact_law``, ``friction_law``, ``smoothing``, ``initial_eccentricity``.
 
     Returns:
         The ``Mechanism`` with bodies ``crank``, ``rod``, ``slider``; ideal joints ``O``, ``A``,
@@ -72,13 +78,9 @@ def slider_crank(
         "A": RevoluteJoint("A", "crank", (0.5 * r, 0.0), "rod", (-0.5 * l, 0.0)),
         "B": RevoluteJoint("B", "rod", (0.5 * l, 0.0), "slider", (0.0, 0.0)),
     }
-    clearance = dict(clearance_joints or {})
-    unknown = set(clearance) - set(SLIDER_CRANK_JOINTS)
-    if unknown:
-        raise ModelError(f"slider_crank: clearance joints must be among O, A, B; got {sorted(unknown)}.")
-    joints = tuple(j for name, j in revolute.items() if name not in clearance)
+    clearance_elements = make_clearance_joints(revolute, clearance_joints, clearance_options, "slider_crank")
+    joints = tuple(j for name, j in revolute.items() if name not in {c.name for c in clearance_elements})
     guide = TranslationalJoint("slider_guide", "slider", (0.0, 0.0), "ground", (0.0, 0.0), axis=(1.0, 0.0))
-    clearance_elements = tuple(make(revolute[name]) for name, make in clearance.items())
     return Mechanism(
         bodies=bodies,
         joints=(*joints, guide),
@@ -100,7 +102,8 @@ def four_bar(
     initial_angle: float = jnp.pi / 3,
     rpm: float | None = 60.0,
     gravity: bool | float = True,
-    clearance_joints: dict | None = None,
+    clearance_joints=(),
+    **clearance_options,
 ) -> Mechanism:
     """A four-bar linkage O2–A–B–O4 with uniform slender links (J = m L²/12).
 
@@ -114,6 +117,7 @@ def four_bar(
         rpm: constant crank speed, or ``None`` for an undriven (free) linkage.
         gravity: ``True`` (9.81 m/s² along −y), ``False`` or a magnitude.
         clearance_joints: as in ``slider_crank``, among ``"O2"``, ``"A"``, ``"B"``, ``"O4"``.
+        **clearance_options: as in ``slider_crank``.
     """
     d, a, b, c = ground_length, crank_length, coupler_length, rocker_length
     th = initial_angle
@@ -138,15 +142,41 @@ def four_bar(
         "B": RevoluteJoint("B", "coupler", (0.5 * b, 0.0), "rocker", (0.5 * c, 0.0)),
         "O4": RevoluteJoint("O4", "ground", (d, 0.0), "rocker", (-0.5 * c, 0.0)),
     }
-    clearance = dict(clearance_joints or {})
-    unknown = set(clearance) - set(revolute)
-    if unknown:
-        raise ModelError(f"four_bar: clearance joints must be among O2, A, B, O4; got {sorted(unknown)}.")
+    clearance = make_clearance_joints(revolute, clearance_joints, clearance_options, "four_bar")
     driver = None if rpm is None else ConstantSpeedDriver("crank", speed=rpm * RPM, initial_angle=th)
     return Mechanism(
         bodies=bodies,
-        joints=tuple(j for n, j in revolute.items() if n not in clearance),
+        joints=tuple(j for n, j in revolute.items() if n not in {c.name for c in clearance}),
         driver=driver,
-        clearance_joints=tuple(make(revolute[n]) for n, make in clearance.items()),
+        clearance_joints=clearance,
         gravity=_gravity(gravity),
+    )
+
+
+def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tuple:
+    """Clearance joints replacing some of the ideal revolute joints ``revolute`` (name → joint).
+
+    Args:
+        revolute: the mechanism's ideal revolute joints by name.
+        spec: names (sequence or comma-separated string) or ``{name: options}``.
+        shared: options common to all (``ClearanceJoint.replacing`` keyword arguments).
+        owner: mechanism name for error messages.
+    """
+    if isinstance(spec, str):
+        spec = [s.strip() for s in spec.split(",") if s.strip() and s.strip().lower() != "none"]
+    if not isinstance(spec, dict):
+        spec = {name: {} for name in spec}
+    unknown = set(spec) - set(revolute)
+    if unknown:
+        raise ModelError(
+            f"{owner}: clearance joints must be among {', '.join(revolute)}; got {sorted(unknown)}."
+        )
+    allowed = {"clearance", "geometry", "contact_law", "friction_law", "smoothing", "initial_eccentricity"}
+    bad = set(shared) - allowed
+    if bad:
+        raise TypeError(f"{owner}: unknown option(s) {sorted(bad)}; clearance options are {sorted(allowed)}.")
+    if "clearance" not in shared and "geometry" not in shared:
+        shared = {**shared, "clearance": 5e-4}
+    return tuple(
+        ClearanceJoint.replacing(revolute[name], **{**shared, **(spec[name] or {})}) for name in revolute if name in spec
     )

@@ -1,0 +1,257 @@
+"""Revolute clearance joint (MODEL.md §2): a pin (journal) in a hole (bearing) with contact forces.
+
+A ``ClearanceJoint`` takes the place of an ideal ``RevoluteJoint``: instead of two constraint
+equations it adds two degrees of freedom and a contact force element. Its internal states (the
+impact-velocity memory m and the friction law's states, e.g. LuGre z) live in the integrator state.
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float
+
+from .._checks import check_finite, check_positive, check_shape, is_concrete
+from .._errors import ModelError
+from .._smooth import safe_norm
+from ..contact._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing
+from ..dynamics._impact_memory import impact_velocity, memory_rate
+from ..dynamics._kinematics import (
+    body_coordinates,
+    point_force_to_generalized,
+    point_position,
+    point_velocity,
+)
+from ..friction._base import AbstractFrictionLaw
+from ._forces import AbstractForceElement
+
+
+def _array(x):
+    return jnp.asarray(x, dtype=float)
+
+
+def _default_contact():
+    from ..contact import Hybrid
+
+    return Hybrid()
+
+
+def _default_friction():
+    from ..friction import LuGre
+
+    return LuGre()
+
+
+def _perp(v):
+    return jnp.stack([-v[1], v[0]])
+
+
+class ClearanceJoint(AbstractForceElement):
+    """A revolute joint with radial clearance c = R_B − R_J.
+
+    The bearing (hole, radius R_B) is on ``bearing_body`` at ``bearing_point``; the journal (pin,
+    radius R_J) on ``journal_body`` at ``journal_point``. Eccentricity e = r_journal − r_bearing;
+    penetration δ = ‖e‖ − c; contact force on the journal f = −F_N n + F_T t applied at
+    Q_II = r_II + R_J n, the opposite on the bearing at Q_I = r_I + R_B n (MODEL.md §2).
+
+    Attributes:
+        name: label used in outputs (static).
+        bearing_body, journal_body: body names (static; ``"ground"`` allowed).
+        bearing_point, journal_point: local joint points, m.
+        geometry: radii, pin length and materials (``ContactGeometry``).
+        contact_law: normal contact law (default: the paper's hybrid L-N + EFM law).
+        friction_law: friction law (default: LuGre).
+        smoothing: regularisation widths (``Smoothing``).
+        initial_eccentricity: journal offset at assembly (global components), m; default centred.
+    """
+
+    name: str = eqx.field(static=True)
+    bearing_body: str = eqx.field(static=True)
+    bearing_point: Float[Array, "2"] = eqx.field(converter=_array)
+    journal_body: str = eqx.field(static=True)
+    journal_point: Float[Array, "2"] = eqx.field(converter=_array)
+    geometry: ContactGeometry = eqx.field(default_factory=lambda: ContactGeometry(0.01, 0.0095))
+    contact_law: AbstractContactLaw = eqx.field(default_factory=_default_contact)
+    friction_law: AbstractFrictionLaw = eqx.field(default_factory=_default_friction)
+    smoothing: Smoothing = eqx.field(default_factory=Smoothing)
+    initial_eccentricity: Float[Array, "2"] = eqx.field(converter=_array, default=(0.0, 0.0))
+
+    def __check_init__(self):
+        owner = f"ClearanceJoint {self.name!r}"
+        for attr in ("bearing_point", "journal_point", "initial_eccentricity"):
+            check_shape(owner, attr, getattr(self, attr), (2,))
+            check_finite(owner, attr, getattr(self, attr))
+        g = self.geometry
+        check_positive(owner, "bearing_radius", g.bearing_radius, "m")
+        check_positive(owner, "journal_radius", g.journal_radius, "m")
+        check_positive(owner, "length (pin length h)", g.length, "m")
+        check_positive(owner, "bearing_young", g.bearing_young, "Pa")
+        check_positive(owner, "journal_young", g.journal_young, "Pa")
+        for attr in ("bearing_poisson", "journal_poisson"):
+            nu = getattr(g, attr)
+            check_finite(owner, attr, nu)
+            if is_concrete(nu) and not (0.0 < float(nu) < 0.5):
+                raise ModelError(f"{owner}: {attr} must be in (0, 0.5), got {float(nu)}; steel is 0.3.")
+        if is_concrete(g.bearing_radius) and is_concrete(g.journal_radius):
+            if not float(g.journal_radius) < float(g.bearing_radius):
+                raise ModelError(
+                    f"{owner}: journal_radius ({float(g.journal_radius)} m) must be smaller than bearing_radius "
+                    f"({float(g.bearing_radius)} m); the clearance c = R_B - R_J must be positive."
+                )
+        s = self.smoothing
+        for attr in ("penetration_width", "velocity_width", "memory_width", "memory_rate", "min_impact_velocity", "force_width"):
+            check_positive(owner, f"smoothing.{attr}", getattr(s, attr))
+        if not isinstance(self.contact_law, AbstractContactLaw):
+            raise TypeError(f"{owner}: contact_law must be an AbstractContactLaw, got {type(self.contact_law).__name__}.")
+        if not isinstance(self.friction_law, AbstractFrictionLaw):
+            raise TypeError(f"{owner}: friction_law must be an AbstractFrictionLaw, got {type(self.friction_law).__name__}.")
+        if is_concrete(self.initial_eccentricity) and is_concrete(g.bearing_radius):
+            if np.linalg.norm(np.asarray(self.initial_eccentricity)) > float(g.bearing_radius - g.journal_radius):
+                raise ModelError(f"{owner}: initial_eccentricity lies outside the clearance circle.")
+
+    @classmethod
+    def replacing(cls, joint, clearance: float | None = None, **kwargs) -> "ClearanceJoint":
+        """A clearance joint at the place of an ideal ``RevoluteJoint`` (bearing on its body_i).
+
+        Args:
+            joint: the ``RevoluteJoint`` to replace (name, bodies and points are taken from it).
+            clearance: radial clearance c, m; sets the journal radius to R_B − c (R_B from
+                ``geometry`` or 10 mm).
+            **kwargs: other ``ClearanceJoint`` fields (geometry, contact_law, friction_law, ...).
+        """
+        geometry = kwargs.pop("geometry", None) or ContactGeometry(0.01, 0.0095)
+        if clearance is not None:
+            if is_concrete(clearance) and not float(clearance) > 0:
+                raise ModelError(f"ClearanceJoint {joint.name!r}: clearance must be > 0 m, got {clearance}.")
+            geometry = eqx.tree_at(lambda g: g.journal_radius, geometry, geometry.bearing_radius - clearance)
+            if is_concrete(geometry.journal_radius) and not float(geometry.journal_radius) > 0:
+                raise ModelError(
+                    f"ClearanceJoint {joint.name!r}: clearance {clearance} m is not smaller than the bearing radius."
+                )
+        return cls(joint.name, joint.body_i, joint.point_i, joint.body_j, joint.point_j, geometry=geometry, **kwargs)
+
+    # --- layout of the internal state: [memory m, friction states...] ---------------------------
+    @property
+    def num_states(self) -> int:
+        return 1 + self.friction_law.num_states
+
+    def initial_state(self, index, q, qd):
+        k = self.kinematics(index, q, qd)
+        return jnp.concatenate([jnp.reshape(k["penetration_rate"], (1,)), self.friction_law.initial_state()])
+
+    def assembly_constraint(self, index, q, t):
+        """Assembly rows: journal centre at bearing centre + initial eccentricity."""
+        ri = point_position(q, index(self.bearing_body), self.bearing_point)
+        rj = point_position(q, index(self.journal_body), self.journal_point)
+        return rj - ri - self.initial_eccentricity
+
+    # --- kinematics and forces ---------------------------------------------------------------
+    def kinematics(self, index, q, qd) -> dict:
+        """Eccentricity, penetration, rates, contact points and slip velocity (MODEL.md §2)."""
+        ib, ij = index(self.bearing_body), index(self.journal_body)
+        rb = point_position(q, ib, self.bearing_point)
+        rj = point_position(q, ij, self.journal_point)
+        vb = point_velocity(q, qd, ib, self.bearing_point)
+        vj = point_velocity(q, qd, ij, self.journal_point)
+        ecc = rj - rb
+        e = safe_norm(ecc)
+        nonzero = e > 0
+        n = jnp.where(nonzero, ecc / jnp.where(nonzero, e, 1.0), jnp.array([1.0, 0.0]))
+        t = _perp(n)
+        de = vj - vb
+        g = self.geometry
+        qb = rb + g.bearing_radius * n
+        qj = rj + g.journal_radius * n
+        slip = t @ (_contact_point_velocity(q, qd, ij, qj) - _contact_point_velocity(q, qd, ib, qb))
+        return dict(
+            eccentricity_vector=ecc,
+            eccentricity=e,
+            normal=n,
+            tangent=t,
+            penetration=e - g.clearance,
+            penetration_rate=n @ de,
+            tangential_rate=t @ de,
+            bearing_contact_point=qb,
+            journal_contact_point=qj,
+            slip_velocity=slip,
+        )
+
+    def contact_forces(self, index, q, qd, state) -> tuple[dict, dict]:
+        """(kinematics, forces): forces has normal_force F_N, friction_force F_T (along t on the
+        journal, includes the law's own tangential part) and the global force on the journal."""
+        k = self.kinematics(index, q, qd)
+        kin = ContactKinematics(
+            penetration=k["penetration"],
+            penetration_rate=k["penetration_rate"],
+            impact_velocity=impact_velocity(state[0], self.smoothing),
+            tangential_rate=k["tangential_rate"],
+        )
+        normal, law_tangential = self.contact_law(kin, self.geometry, self.smoothing)
+        friction = self.friction_law.force(k["slip_velocity"], normal, state[1:], self.smoothing)
+        tangential = friction + law_tangential
+        on_journal = -normal * k["normal"] + tangential * k["tangent"]
+        return k, dict(normal_force=normal, friction_force=friction, tangential_force=tangential, force_on_journal=on_journal)
+
+    def generalized_force(self, index, q, qd, t, state):
+        k, f = self.contact_forces(index, q, qd, state)
+        ib, ij = index(self.bearing_body), index(self.journal_body)
+        fj = f["force_on_journal"]
+        return point_force_to_generalized(q, ij, k["journal_contact_point"], fj) + point_force_to_generalized(
+            q, ib, k["bearing_contact_point"], -fj
+        )
+
+    def state_derivative(self, index, q, qd, qdd, t, state):
+        k, f = self.contact_forces(index, q, qd, state)
+        ib, ij = index(self.bearing_body), index(self.journal_body)
+        accel = _point_acceleration(q, qd, qdd, ij, self.journal_point) - _point_acceleration(
+            q, qd, qdd, ib, self.bearing_point
+        )
+        m_dot = memory_rate(
+            state[0],
+            k["penetration"],
+            k["penetration_rate"],
+            k["eccentricity"],
+            self.geometry.clearance,
+            k["tangential_rate"],
+            k["normal"] @ accel,
+            self.smoothing,
+        )
+        z_dot = self.friction_law.state_derivative(k["slip_velocity"], f["normal_force"], state[1:], self.smoothing)
+        return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
+
+    def outputs(self, index, q, qd, qdd, t, state) -> dict:
+        """Per-instant outputs: eccentricity components, penetration, forces, internal states."""
+        k, f = self.contact_forces(index, q, qd, state)
+        out = dict(
+            ecc_x=k["eccentricity_vector"][0],
+            ecc_y=k["eccentricity_vector"][1],
+            penetration=k["penetration"],
+            penetration_rate=k["penetration_rate"],
+            normal_force=f["normal_force"],
+            friction_force=f["friction_force"],
+            tangential_force=f["tangential_force"],
+            slip_velocity=k["slip_velocity"],
+            impact_velocity=state[0],
+        )
+        if self.friction_law.num_states:
+            out["friction_state"] = state[1]
+        return out
+
+
+def _contact_point_velocity(q, qd, index, point):
+    """Velocity of the body-fixed material point currently at global ``point``."""
+    if index is None:
+        return jnp.zeros(2, dtype=q.dtype)
+    r, _ = body_coordinates(q, index)
+    rd, phid = body_coordinates(qd, index)
+    return rd + phid * _perp(point - r)
+
+
+def _point_acceleration(q, qd, qdd, index, local):
+    """r̈ + φ̈ B s' − φ̇² A s' of a body-fixed point."""
+    if index is None:
+        return jnp.zeros(2, dtype=q.dtype)
+    r, phi = body_coordinates(q, index)
+    _, phid = body_coordinates(qd, index)
+    rdd, phidd = body_coordinates(qdd, index)
+    s = point_position(q, index, local) - r
+    return rdd + phidd * _perp(s) - phid**2 * s
