@@ -14,7 +14,7 @@ from ._errors import ModelError, SimulationError
 from ._solver import SolverConfig, solver_config
 from ._trajectory import Trajectory
 from .dynamics._assembly import assemble_state, check_assembly
-from .dynamics._equations import evaluate, vector_field
+from .dynamics._equations import evaluate, nonstiff_vector_field, stiff_vector_field, vector_field
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
@@ -92,8 +92,12 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         y0 = initial_state(mechanism, q0, qd0)
     y0 = _value_checks(mechanism, y0)
     saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)])
+    if config.imex:
+        terms = diffrax.MultiTerm(diffrax.ODETerm(nonstiff_vector_field), diffrax.ODETerm(stiff_vector_field))
+    else:
+        terms = diffrax.ODETerm(vector_field)
     sol = diffrax.diffeqsolve(
-        diffrax.ODETerm(vector_field),
+        terms,
         config.make_solver(),
         t0,
         t1,

@@ -43,6 +43,11 @@ def clamp_nonnegative(x: ArrayLike, width: ArrayLike) -> Float[Array, "..."]:
     return x * smooth_step(x, width)
 
 
+def lankarani_nikravesh_hysteresis(restitution: ArrayLike) -> Float[Array, "..."]:
+    """Lankarani–Nikravesh hysteresis factor ``χ̂ = 3(1 − c_e²)/4``, dimensionless."""
+    return 0.75 * (1.0 - jnp.asarray(restitution) ** 2)
+
+
 def damping_factor(
     hysteresis: ArrayLike,
     rate: ArrayLike,
@@ -148,7 +153,7 @@ class LankaraniNikravesh(AbstractDampedContactLaw):
 
     def hysteresis_factor(self) -> Float[Array, ""]:
         """χ̂ = 3(1 − c_e²)/4."""
-        return 0.75 * (1.0 - self.restitution**2)
+        return lankarani_nikravesh_hysteresis(self.restitution)
 
 
 class HuntCrossley(AbstractDampedContactLaw):

@@ -69,3 +69,19 @@ def vector_field(t, y, mechanism) -> Float[Array, " N"]:
     out = evaluate(mechanism, t, y)
     parts = [out["qd"], out["qdd"]] + [out["state_rates"][e.name] for e in mechanism.force_elements]
     return jnp.concatenate([jnp.reshape(p, (-1,)).astype(y.dtype) for p in parts])
+
+
+def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
+    """The stiff part of dy/dt (internal states only), integrated implicitly by IMEX solvers."""
+    q, qd, states = mechanism.split_state(y)
+    n = mechanism.num_coordinates
+    parts = [jnp.zeros((2 * n,), y.dtype)] + [
+        jnp.reshape(e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name]), (-1,)).astype(y.dtype)
+        for e in mechanism.force_elements
+    ]
+    return jnp.concatenate(parts)
+
+
+def nonstiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
+    """dy/dt minus its stiff part: the explicit part of an IMEX split."""
+    return vector_field(t, y, mechanism) - stiff_vector_field(t, y, mechanism)

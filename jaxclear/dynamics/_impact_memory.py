@@ -41,6 +41,11 @@ def memory_rate(memory, penetration, penetration_rate, eccentricity, clearance, 
     return freeze_weight(penetration, smoothing) * (d_rate + smoothing.memory_rate * (penetration_rate - memory))
 
 
+def memory_relaxation(memory, penetration, penetration_rate, smoothing):
+    """The stiff part of ṁ, w(δ) k_m (δ̇ − m) (rate k_m ≈ 1e6 1/s): implicit in IMEX solvers."""
+    return freeze_weight(penetration, smoothing) * smoothing.memory_rate * (penetration_rate - memory)
+
+
 def impact_velocity(memory, smoothing):
     """δ̇⁻ seen by the contact law: max(m, v_min), smooth over a band of width v_min."""
     v_min = smoothing.min_impact_velocity

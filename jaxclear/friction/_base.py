@@ -44,3 +44,17 @@ class AbstractFrictionLaw(eqx.Module):
     ) -> Float[Array, " num_states"]:
         """Time derivative of the internal state (empty for stateless laws)."""
         return jnp.zeros((self.num_states,))
+
+    def stiff_state_derivative(
+        self,
+        slip_velocity: Float[Array, ""],
+        normal_force: Float[Array, ""],
+        state: Float[Array, " num_states"],
+        smoothing: Smoothing,
+    ) -> Float[Array, " num_states"]:
+        """The stiff part of ``state_derivative`` (for IMEX solvers: treated implicitly).
+
+        Must be a part of ``state_derivative``; the rest is integrated explicitly. Default: none.
+        """
+        return jnp.zeros((self.num_states,))
+

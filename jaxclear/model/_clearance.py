@@ -14,7 +14,7 @@ from .._checks import check_finite, check_positive, check_shape, is_concrete
 from .._errors import ModelError
 from .._smooth import safe_norm
 from ..contact._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing
-from ..dynamics._impact_memory import impact_velocity, memory_rate
+from ..dynamics._impact_memory import impact_velocity, memory_rate, memory_relaxation
 from ..dynamics._kinematics import (
     body_coordinates,
     point_force_to_generalized,
@@ -216,6 +216,13 @@ class ClearanceJoint(AbstractForceElement):
             self.smoothing,
         )
         z_dot = self.friction_law.state_derivative(k["slip_velocity"], f["normal_force"], state[1:], self.smoothing)
+        return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
+
+    def stiff_state_derivative(self, index, q, qd, t, state):
+        """Stiff parts: memory relaxation k_m term and the friction law's stiff part (LuGre z)."""
+        k, f = self.contact_forces(index, q, qd, state)
+        m_dot = memory_relaxation(state[0], k["penetration"], k["penetration_rate"], self.smoothing)
+        z_dot = self.friction_law.stiff_state_derivative(k["slip_velocity"], f["normal_force"], state[1:], self.smoothing)
         return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
     def outputs(self, index, q, qd, qdd, t, state) -> dict:

@@ -49,6 +49,13 @@ class AbstractForceElement(eqx.Module):
         """Time derivative of the internal state; ``qdd`` is this evaluation's acceleration."""
         return jnp.zeros((self.num_states,))
 
+    def stiff_state_derivative(self, index: Index, q, qd, t, state) -> Float[Array, " s"]:
+        """The stiff part of ``state_derivative``, integrated implicitly by IMEX solvers (KenCarp).
+
+        Must not depend on accelerations. Default: nothing is stiff.
+        """
+        return jnp.zeros((self.num_states,))
+
 
 class AppliedForce(AbstractForceElement):
     """Constant force (global components, N) applied at a body-fixed point (local vector, m)."""

@@ -1,0 +1,231 @@
+"""Plots of a ``Trajectory`` with matplotlib.
+
+Every function returns a ``matplotlib.figure.Figure`` built without ``pyplot`` (no global state,
+no GUI; saving uses the Agg renderer), so it works headless, in scripts and in notebooks. The
+quantities are the columns of ``results.csv`` (see ``jaxclear._outputs.result_columns``), e.g.
+``"slider_x"``, ``"slider_a"``, ``"crank_torque"``, ``"A_Fx"``, ``"constraint_violation"``.
+
+Each plotting function takes an optional ``reference`` trajectory (for instance the ideal-joint run)
+drawn first, thin and grey, behind the main curve::
+
+    ideal = jaxclear.simulate(jaxclear.mechanisms.slider_crank(), t1)
+    fig = plot_vs_crank_angle(clearance_run, "slider_a", reference=ideal)
+    fig.savefig("slider_acceleration.png")
+"""
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import MultipleLocator
+
+from ._outputs import Column, column_map
+
+QUANTITY_LABELS = {
+    "slider_x": "Slider position",
+    "slider_v": "Slider velocity",
+    "slider_a": "Slider acceleration",
+    "crank_torque": "Crank input torque",
+    "crank_angle": "Crank angle",
+    "constraint_violation": "Constraint violation max |Φ|",
+    "velocity_violation": "Velocity constraint violation max |Φ̇|",
+    "t": "Time",
+}
+"""Axis titles of the common quantities; other columns are labelled by their name."""
+
+UNIT_LABELS = {"m/s^2": "m/s²", "N m": "N·m", "deg": "°"}
+
+STANDARD_PLOTS = (
+    ("slider_position.png", "slider_x", "angle"),
+    ("slider_velocity.png", "slider_v", "angle"),
+    ("slider_acceleration.png", "slider_a", "angle"),
+    ("crank_torque.png", "crank_torque", "angle"),
+    ("constraint_violation.png", "constraint_violation", "time"),
+)
+"""(file name, quantity, horizontal axis) written by ``save_standard_plots``."""
+
+FIGSIZE = (7.0, 4.0)  # inches
+DPI = 110  # ~770 x 440 px, a few tens of kB per PNG
+MAIN_STYLE = dict(color="C0", linewidth=1.4, zorder=3)
+REFERENCE_STYLE = dict(color="0.55", linewidth=1.0, linestyle="--", zorder=2)
+
+
+def _get(columns: dict[str, Column], quantity: str) -> Column:
+    if quantity not in columns:
+        raise ValueError(f"unknown quantity {quantity!r}; this trajectory has: {', '.join(columns)}.")
+    return columns[quantity]
+
+
+def _curve(traj, quantity: str, xaxis: str) -> tuple[Column, Column]:
+    """(x column, y column) of one trajectory; ``xaxis`` is ``"angle"`` or ``"time"``."""
+    columns = column_map(traj)
+    if xaxis == "time":
+        return columns["t"], _get(columns, quantity)
+    mech = traj.mechanism
+    if mech.driver is None:
+        raise ValueError("the mechanism has no driver, so there is no crank angle; use plot_vs_time.")
+    return columns[f"{mech.driver.body}_angle"], _get(columns, quantity)
+
+
+def _axis_label(column: Column) -> str:
+    title = QUANTITY_LABELS.get(column.name, column.name)
+    unit = UNIT_LABELS.get(column.unit, column.unit)
+    return f"{title} ({unit})" if unit else title
+
+
+def _new_axes(ax):
+    if ax is not None:
+        return ax.figure, ax
+    fig = Figure(figsize=FIGSIZE, dpi=DPI, layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _speed_label(traj) -> str:
+    """" — 5000 rpm" for a constant-speed driver, else ""."""
+    speed = getattr(traj.mechanism.driver, "speed", None)
+    try:
+        rpm = float(np.asarray(speed)) * 60.0 / (2.0 * np.pi)
+    except (TypeError, ValueError):  # no driver, or a batched/traced speed
+        return ""
+    return f" — {rpm:g} rpm" if np.isfinite(rpm) else ""
+
+
+def _finish(ax, xlabel, ycol, title, legend, traj):
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(_axis_label(ycol))
+    if title is None:
+        title = QUANTITY_LABELS.get(ycol.name, ycol.name) + _speed_label(traj)
+    ax.set_title(title)
+    ax.grid(True, which="major", alpha=0.5)
+    if legend:
+        ax.legend(loc="best")
+
+
+def _references(reference) -> Sequence:
+    if reference is None:
+        return ()
+    return reference if isinstance(reference, list | tuple) else (reference,)
+
+
+def plot_vs_crank_angle(
+    traj,
+    quantity: str,
+    *,
+    reference=None,
+    label: str | None = None,
+    reference_label: str = "ideal joints",
+    title: str | None = None,
+    ax=None,
+) -> Figure:
+    """A quantity against the crank (driven-body) angle in degrees.
+
+    Args:
+        traj: a single ``Trajectory`` of a driven mechanism.
+        quantity: a column name of results.csv, e.g. ``"slider_a"`` or ``"crank_torque"``.
+        reference: optional ``Trajectory`` (or list of them) drawn behind, grey and dashed.
+        label: legend entry of ``traj`` (a legend is shown only with a reference or a label).
+        reference_label: legend entry of the reference.
+        title: axes title (default: the quantity's name and the crank speed).
+        ax: draw into these axes instead of a new figure.
+
+    Returns:
+        The ``Figure``.
+    """
+    fig, ax = _new_axes(ax)
+    refs = _references(reference)
+    for k, ref in enumerate(refs):
+        x, y = _curve(ref, quantity, "angle")
+        ax.plot(x.values, y.values, label=reference_label if k == 0 else None, **REFERENCE_STYLE)
+    angle, ycol = _curve(traj, quantity, "angle")
+    ax.plot(angle.values, ycol.values, label=label or ("this run" if refs else None), **MAIN_STYLE)
+    span = float(np.ptp(angle.values))
+    if 0 < span <= 1440:
+        ax.xaxis.set_major_locator(MultipleLocator(90 if span > 180 else 30))
+    if span > 0:
+        ax.set_xlim(angle.values.min(), angle.values.max())
+    _finish(ax, "Crank angle (°)", ycol, title, legend=bool(refs) or label is not None, traj=traj)
+    return fig
+
+
+def plot_vs_time(
+    traj,
+    quantity: str,
+    *,
+    reference=None,
+    log: bool = False,
+    label: str | None = None,
+    reference_label: str = "ideal joints",
+    title: str | None = None,
+    ax=None,
+) -> Figure:
+    """A quantity against time in seconds; ``log=True`` plots |value| on a log axis.
+
+    Args: as ``plot_vs_crank_angle``, plus ``log``. Non-positive values are left out of a log plot.
+
+    Returns:
+        The ``Figure``.
+    """
+    fig, ax = _new_axes(ax)
+    refs = _references(reference)
+
+    def values(column):
+        y = column.values
+        return np.where(np.abs(y) > 0, np.abs(y), np.nan) if log else y
+
+    plotted = []
+    for k, ref in enumerate(refs):
+        x, y = _curve(ref, quantity, "time")
+        plotted.append(values(y))
+        ax.plot(x.values, plotted[-1], label=reference_label if k == 0 else None, **REFERENCE_STYLE)
+    x, ycol = _curve(traj, quantity, "time")
+    plotted.append(values(ycol))
+    ax.plot(x.values, plotted[-1], label=label or ("this run" if refs else None), **MAIN_STYLE)
+    if log and any(np.any(np.isfinite(p)) for p in plotted):
+        ax.set_yscale("log")
+    _finish(ax, "Time (s)", ycol, title, legend=bool(refs) or label is not None, traj=traj)
+    return fig
+
+
+def plot_constraint_violation(traj, *, reference=None, ax=None) -> Figure:
+    """max |Φ| against time on a log axis: shows how well Baumgarte stabilisation holds the joints."""
+    return plot_vs_time(traj, "constraint_violation", reference=reference, log=True, ax=ax)
+
+
+def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> list[Path]:
+    """Write the standard PNGs of a slider–crank run into ``out_dir`` (created if missing).
+
+    Files: slider_position.png, slider_velocity.png, slider_acceleration.png, crank_torque.png
+    (against crank angle) and constraint_violation.png (against time, log axis); plots whose
+    quantity the mechanism lacks (no slider, no driver) are skipped.
+
+    Args:
+        traj: a single ``Trajectory``.
+        out_dir: folder for the PNGs.
+        reference: optional reference ``Trajectory`` drawn behind each curve.
+        dpi: resolution.
+
+    Returns:
+        Paths of the files written.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    available = column_map(traj)
+    written = []
+    for filename, quantity, xaxis in STANDARD_PLOTS:
+        if quantity not in available:
+            continue
+        if xaxis == "angle":
+            if traj.mechanism.driver is None:
+                continue
+            fig = plot_vs_crank_angle(traj, quantity, reference=reference)
+        elif quantity == "constraint_violation":
+            fig = plot_constraint_violation(traj, reference=reference)
+        else:
+            fig = plot_vs_time(traj, quantity, reference=reference)
+        path = out_dir / filename
+        tmp = out_dir / f".{filename}.tmp.png"
+        fig.savefig(tmp, dpi=dpi)
+        tmp.replace(path)
+        written.append(path)
+    return written
