@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .model._joints import RevoluteJoint, TranslationalJoint
+
 CSV_NAME = "results.csv"
 NPZ_NAME = "results.npz"
 RUN_JSON_NAME = "run.json"
@@ -87,8 +89,6 @@ def result_columns(traj) -> list[Column]:
     Raises:
         ValueError: ``traj`` is batched.
     """
-    from .model._joints import RevoluteJoint, TranslationalJoint
-
     t = np.asarray(traj.t, dtype=float)
     if t.ndim != 1:
         raise ValueError(f"result_columns needs one trajectory, got a batch (t has shape {t.shape}); index it first.")

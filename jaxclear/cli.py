@@ -86,6 +86,12 @@ def _solver_names() -> tuple[str, ...]:
     return tuple(PRESETS) + tuple(METHODS)
 
 
+def _solver_help() -> str:
+    from ._solver import METHODS, PRESETS
+
+    return f"preset ({', '.join(PRESETS)}) or diffrax method ({', '.join(METHODS)})"
+
+
 DEFAULT_SOLVER = "fast"
 """Default preset: explicit Tsit5, fastest for ideal joints (no stiffness; MODEL.md §5b)."""
 
@@ -131,7 +137,7 @@ SETTINGS: tuple[Setting, ...] = (
         str,
         DEFAULT_SOLVER,
         "",
-        "preset (robust, fast, accurate) or diffrax method (tsit5, dopri5, dopri8, bosh3, kvaerno3, kvaerno4, kvaerno5)",
+        _solver_help(),
         "--solver",
     ),
     Setting("solver", "rtol", float, None, "", "relative tolerance of the adaptive step", "--rtol", "positive"),
@@ -367,10 +373,7 @@ def _solver(config: dict, sources: dict):
     name = section["method"]
     if name not in _solver_names():
         source = sources[("solver", "method")]
-        raise UsageError(
-            f"{source}: solver {name!r} is unknown; choose a preset (robust, fast, accurate) or a method "
-            f"({', '.join(n for n in _solver_names() if n not in ('robust', 'fast', 'accurate'))})"
-        )
+        raise UsageError(f"{source}: solver {name!r} is unknown; choose a {_solver_help()}")
     solver = solver_config(name)
     changes = {k: section[k] for k in ("rtol", "atol", "max_steps") if section[k] is not None}
     changes = {k: float(v) if k != "max_steps" else v for k, v in changes.items()}
@@ -446,7 +449,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"--out {str(out_dir)!r} exists and is not a folder; choose another path")
     quiet = args.quiet
     progress = not (quiet or args.no_progress) and sys.stderr.isatty()
-    say = (lambda *a: None) if quiet else print
+    say = (lambda *a, **k: None) if quiet else print
     rpm, revs = config["mechanism"]["rpm"], config["simulation"]["revolutions"]
     say(
         f"jaxclear {__version__}: slider-crank, ideal joints, {rpm:g} rpm, {revs:g} revolutions "

@@ -142,8 +142,9 @@ def plot_vs_crank_angle(
     span = float(np.ptp(angle.values))
     if 0 < span <= 1440:
         ax.xaxis.set_major_locator(MultipleLocator(90 if span > 180 else 30))
-    if span > 0:
-        ax.set_xlim(angle.values.min(), angle.values.max())
+    if span > 0:  # pad by a hair so ticks at the ends (720°) survive round-off in the integrated angle
+        pad = 1e-6 * span
+        ax.set_xlim(angle.values.min() - pad, angle.values.max() + pad)
     _finish(ax, "Crank angle (°)", ycol, title, legend=bool(refs) or label is not None, traj=traj)
     return fig
 

@@ -7,6 +7,7 @@ import numpy as np
 def kinetic_energy(traj):
     """T = ½ q̇ᵀ M q̇ at each saved instant, J."""
     m = traj.mechanism.mass_diagonal
+    m = jnp.reshape(m, (1,) * (traj.qd.ndim - 1) + m.shape)
     return 0.5 * jnp.sum(m * traj.qd**2, axis=-1)
 
 
@@ -15,7 +16,9 @@ def potential_energy(traj):
     mech = traj.mechanism
     masses = jnp.stack([b.mass for b in mech.bodies])
     pos = jnp.reshape(traj.q, traj.q.shape[:-1] + (len(mech.bodies), 3))[..., :2]
-    grav = -jnp.sum(masses * jnp.sum(pos * mech.gravity, axis=-1), axis=-1)
+    g = jnp.reshape(mech.gravity, (1,) * (pos.ndim - 1) + (2,))
+    masses = jnp.reshape(masses, (1,) * (pos.ndim - 2) + masses.shape)
+    grav = -jnp.sum(masses * jnp.sum(pos * g, axis=-1), axis=-1)
     springs = jnp.zeros_like(grav)
     for f in mech.forces:
         if hasattr(f, "potential_energy"):

@@ -103,9 +103,9 @@ class ContactKinematics(eqx.Module):
         tangential_rate: tᵀė = e θ̇_n, m/s, the speed at which the line of centres sweeps round.
     """
 
-    penetration: Float[Array, ""]
-    penetration_rate: Float[Array, ""]
-    impact_velocity: Float[Array, ""]
+    penetration: Float[Array, ""] = eqx.field(converter=_array)
+    penetration_rate: Float[Array, ""] = eqx.field(converter=_array)
+    impact_velocity: Float[Array, ""] = eqx.field(converter=_array)
     tangential_rate: Float[Array, ""] = eqx.field(converter=_array, default=0.0)
 
 

@@ -145,5 +145,5 @@ class Hybrid(AbstractContactLaw):
         """
         forces, psi = self.element_forces(kin, geometry, smoothing)
         normal = jnp.sum(forces * jnp.cos(psi))
-        tangential = jnp.sum(forces * jnp.sin(psi))
+        tangential = -jnp.sum(forces * jnp.sin(psi))
         return normal, tangential

@@ -39,6 +39,15 @@ def assembly_labels(mechanism) -> list[str]:
     return labels
 
 
+def _least_norm_solve(jac, rhs):
+    """Least-norm x with J x ≈ rhs: x = Jᵀ (J Jᵀ + εI)⁻¹ rhs (ε tiny; keeps redundant rows finite)."""
+    if jac.shape[0] == 0:
+        return jnp.zeros((jac.shape[1],), dtype=jac.dtype)
+    jjt = jac @ jac.T
+    eps = RANK_TOLERANCE * (jnp.trace(jjt) / jjt.shape[0] + 1e-30)
+    return jac.T @ jnp.linalg.solve(jjt + eps * jnp.eye(jjt.shape[0], dtype=jac.dtype), rhs)
+
+
 def assemble_state(mechanism, t0=0.0):
     """Pure JAX assembly (jit/vmap/grad friendly).
 
@@ -51,13 +60,13 @@ def assemble_state(mechanism, t0=0.0):
     def step(_, q):
         phi = assembly_constraints(mechanism, q, t0)
         jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
-        return q - jnp.linalg.pinv(jac, rtol=RANK_TOLERANCE) @ phi
+        return q - _least_norm_solve(jac, phi)
 
     q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, step, q)
     phi = assembly_constraints(mechanism, q, t0)
     jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
     phi_t = jax.jacfwd(assembly_constraints, argnums=2)(mechanism, q, t0)
-    qd = qd - jnp.linalg.pinv(jac, rtol=RANK_TOLERANCE) @ (jac @ qd + phi_t)
+    qd = qd - _least_norm_solve(jac, jac @ qd + phi_t)
     return q, qd, jnp.max(jnp.abs(phi), initial=0.0), jnp.max(jnp.abs(jac @ qd + phi_t), initial=0.0)
 
 

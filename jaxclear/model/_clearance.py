@@ -104,7 +104,7 @@ class ClearanceJoint(AbstractForceElement):
             raise TypeError(f"{owner}: contact_law must be an AbstractContactLaw, got {type(self.contact_law).__name__}.")
         if not isinstance(self.friction_law, AbstractFrictionLaw):
             raise TypeError(f"{owner}: friction_law must be an AbstractFrictionLaw, got {type(self.friction_law).__name__}.")
-        if is_concrete(self.initial_eccentricity) and is_concrete(g.bearing_radius):
+        if all(is_concrete(x) for x in (self.initial_eccentricity, g.bearing_radius, g.journal_radius)):
             if np.linalg.norm(np.asarray(self.initial_eccentricity)) > float(g.bearing_radius - g.journal_radius):
                 raise ModelError(f"{owner}: initial_eccentricity lies outside the clearance circle.")
 

@@ -1,0 +1,450 @@
+"""Independent NumPy/SciPy reference: slider-crank with revolute clearance joints.
+
+Shares nothing with ``jaxclear`` except the parameter values of MODEL.md §6.  Cartesian coordinates
+q = (x, y, phi) for crank (body 0), rod (1), slider (2); ground has no coordinates.  Hand-written
+constraint Jacobians, index-1 equations with Baumgarte stabilisation, multipliers from the Schur
+complement (M is diagonal).  Two contact modes:
+
+* ``"sharp"``: the hybrid model; events on delta = e - c, impact velocity latched at each onset;
+* ``"smooth"``: MODEL.md §5 -- C1 ramps for the penetration and the damping factor, and an
+  impact-velocity memory state m per joint, m' = w(delta) [d(delta')/dt + k_m (delta' - m)].
+
+State y = (q[9], qd[9], m[n_clearance] (smooth mode only), W (drive work, optional)).
+Sign conventions: crank_torque > 0 means the motor does positive work when omega > 0; the reaction
+of an ideal joint is the force magnitude |lambda_J|.  Eccentricities are global x/y components.
+"""
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+R_CRANK, L_ROD = 0.05, 0.12
+MASS = (0.30, 0.21, 0.14)
+INERTIA = (1.0e-4, 2.5e-4, 1.0e-4)
+GRAV = 9.81
+# joint -> (bearing body, point on it, journal body, point on it); body -1 is ground
+EYE2 = np.eye(2)
+JOINTS = {
+    "O": (-1, (0.0, 0.0), 0, (-R_CRANK / 2, 0.0)),
+    "A": (0, (R_CRANK / 2, 0.0), 1, (-L_ROD / 2, 0.0)),
+    "B": (1, (L_ROD / 2, 0.0), 2, (0.0, 0.0)),
+}
+
+
+def ideal_closed_form(theta, omega, r=R_CRANK, l=L_ROD):
+    """Slider x, v, a for x = r cos(th) + sqrt(l^2 - r^2 sin^2(th)), th = omega t (exact derivatives)."""
+    th = np.asarray(theta, dtype=float)
+    s, c = np.sin(th), np.cos(th)
+    S = np.sqrt(l**2 - r**2 * s**2)
+    x = r * c + S
+    dx = -r * s - r**2 * s * c / S
+    ddx = -r * c - r**2 * (c**2 - s**2) / S - r**4 * s**2 * c**2 / S**3
+    return {"x": x, "v": omega * dx, "a": omega**2 * ddx}
+
+
+def ramp(x, w):
+    """C1 positive part: 0 (x<=0), x^2/(2w) (0<x<w), x - w/2 (x>=w)."""
+    if x <= 0.0:
+        return 0.0
+    return x * x / (2 * w) if x < w else x - 0.5 * w
+
+
+def ramp_potential(d, w):
+    """int_0^d ramp(s, w)^1.5 ds (for the energy of the smooth, undamped law)."""
+    if d <= 0.0:
+        return 0.0
+    if d < w:
+        return d**4 / (4.0 * (2.0 * w) ** 1.5)
+    return w**4 / (4.0 * (2.0 * w) ** 1.5) + 0.4 * ((d - 0.5 * w) ** 2.5 - (0.5 * w) ** 2.5)
+
+
+def memory_weight(d, w_m):
+    """1 for d <= -w_m, 0 for d >= 0, cubic smoothstep in between."""
+    u = min(max((d + w_m) / w_m, 0.0), 1.0)
+    return 1.0 - u * u * (3.0 - 2.0 * u)
+
+
+def _point(q, qd, k, s):
+    """Position, velocity, A s and B s of local point s on body k (k = -1: ground point)."""
+    if k < 0:
+        z = np.zeros(2)
+        return np.array(s, float), z, z, z
+    c, sn = np.cos(q[3 * k + 2]), np.sin(q[3 * k + 2])
+    As = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+    Bs = np.array([-As[1], As[0]])
+    return q[3 * k:3 * k + 2] + As, qd[3 * k:3 * k + 2] + qd[3 * k + 2] * Bs, As, Bs
+
+
+def _point_acc(qd, qdd, k, As, Bs):
+    if k < 0:
+        return np.zeros(2)
+    return qdd[3 * k:3 * k + 2] + qdd[3 * k + 2] * Bs - qd[3 * k + 2] ** 2 * As
+
+
+def _kx(a):
+    return np.array([-a[1], a[0]])
+
+
+def _cross(a, f):
+    return a[0] * f[1] - a[1] * f[0]
+
+
+class SliderCrank:
+    def __init__(self, clearance_joints=("B",), rpm=5000.0, mode="smooth", restitution=0.9,
+                 friction=None, gravity=False, clearance=5e-4, bearing_radius=0.01, E=207e9,
+                 nu=0.3, alpha=5.0, beta=5.0, w_delta=1e-7, w_m=1e-7, k_m=1e6, v_min=1e-4,
+                 w_factor=1e-3, track_work=False):
+        assert mode in ("smooth", "sharp") and set(clearance_joints) <= set("OAB")
+        self.cj = tuple(j for j in "OAB" if j in clearance_joints)
+        self.ij = tuple(j for j in "OAB" if j not in self.cj)
+        self.mode, self.omega, self.track_work = mode, rpm * np.pi / 30.0, track_work
+        self.RB, self.RJ, self.c = bearing_radius, bearing_radius - clearance, clearance
+        sigma = (1 - nu**2) / E
+        self.K = 4.0 / (3.0 * 2 * sigma) * np.sqrt(self.RB * self.RJ / clearance)
+        self.chi = 0.75 * (1.0 - restitution**2)
+        self.friction = friction
+        self.alpha, self.beta = alpha, beta
+        self.w_delta, self.w_m, self.k_m, self.v_min, self.w_factor = w_delta, w_m, k_m, v_min, w_factor
+        self.minv = 1.0 / np.array([v for k in range(3) for v in (MASS[k], MASS[k], INERTIA[k])])
+        self.Qg = np.zeros(9)
+        if gravity:
+            self.Qg[[1, 4, 7]] = -GRAV * np.array(MASS)
+        self.nc = len(self.cj)
+        self.nm = self.nc if mode == "smooth" else 0
+        self.n_state = 18 + self.nm + (1 if track_work else 0)
+        self.n_eval = 0  # all right-hand-side evaluations (incl. finite-difference Jacobians)
+
+    # ---- constraints: ideal revolutes, translational (y2 = 0, phi2 = 0), driver phi0 = omega t
+    def constraints(self, t, q, qd):
+        nrow = 2 * len(self.ij) + 3
+        Pq, Phi, gam = np.zeros((nrow, 9)), np.zeros(nrow), np.zeros(nrow)
+        for r, j in enumerate(self.ij):
+            i, si, k, sk = JOINTS[j]
+            rows = slice(2 * r, 2 * r + 2)
+            ri, _, Ai, Bi = _point(q, qd, i, si)
+            rk, _, Ak, Bk = _point(q, qd, k, sk)
+            Phi[rows] = ri - rk
+            if i >= 0:
+                Pq[rows, 3 * i:3 * i + 2] = EYE2
+                Pq[rows, 3 * i + 2] = Bi
+                gam[rows] += Ai * qd[3 * i + 2] ** 2
+            Pq[rows, 3 * k:3 * k + 2] = -EYE2
+            Pq[rows, 3 * k + 2] = -Bk
+            gam[rows] -= Ak * qd[3 * k + 2] ** 2
+        Pq[-3, 7], Phi[-3] = 1.0, q[7]  # slider on the x axis
+        Pq[-2, 8], Phi[-2] = 1.0, q[8]  # slider does not rotate
+        Pq[-1, 2], Phi[-1] = 1.0, q[2] - self.omega * t  # driver
+        Phi_t = np.zeros(nrow)
+        Phi_t[-1] = -self.omega
+        return Phi, Pq, gam, Pq @ qd + Phi_t
+
+    # ---- clearance joint kinematics and forces (added to Q); returns per-joint info
+    def contact(self, j, q, qd, Q, dminus):
+        i, si, k, sk = JOINTS[j]
+        rI, vI, AI, BI = _point(q, qd, i, si)
+        rII, vII, AII, BII = _point(q, qd, k, sk)
+        e_vec, edot = rII - rI, vII - vI
+        e = np.hypot(e_vec[0], e_vec[1])
+        n = e_vec / e if e > 1e-15 else np.array([1.0, 0.0])
+        t_vec = np.array([-n[1], n[0]])
+        delta, ddelta = e - self.c, n @ edot
+        if self.mode == "sharp":
+            fac = max(0.0, 1.0 + self.chi * ddelta / dminus)
+            FN = self.K * max(delta, 0.0) ** 1.5 * fac
+        else:
+            m = dminus  # memory state; smooth max with v_min
+            dm = 0.5 * (m + self.v_min + np.sqrt((m - self.v_min) ** 2 + (0.1 * self.v_min) ** 2))
+            fac = ramp(1.0 + self.chi * ddelta / dm, self.w_factor)
+            FN = self.K * ramp(delta, self.w_delta) ** 1.5 * fac
+        armI = (AI if i >= 0 else 0.0) + self.RB * n  # CM -> contact point Q_I
+        armII = AII + self.RJ * n  # CM -> contact point Q_II
+        # material velocities of the contact points: v_P + phi' k x (arm - A s)
+        vQI = vI + (qd[3 * i + 2] * (_kx(armI) - BI) if i >= 0 else 0.0)
+        vQII = vII + qd[3 * k + 2] * (_kx(armII) - BII)
+        vT = t_vec @ (vQII - vQI)
+        FT = 0.0
+        if self.friction is not None and FN > 0.0:
+            _, mu, v_eps = self.friction
+            FT = -mu * FN * np.tanh(vT / v_eps)
+        f = -FN * n + FT * t_vec  # on the journal
+        Q[3 * k:3 * k + 2] += f
+        Q[3 * k + 2] += _cross(armII, f)
+        if i >= 0:
+            Q[3 * i:3 * i + 2] -= f
+            Q[3 * i + 2] -= _cross(armI, f)
+        return dict(e_vec=e_vec, e=e, n=n, edot=edot, delta=delta, ddelta=ddelta, FN=FN, FT=FT,
+                    vT=vT, i=i, k=k, AI=AI, BI=BI, AII=AII, BII=BII)
+
+    def evaluate(self, t, y, dminus=None):
+        """Full evaluation: returns (ydot, info dict)."""
+        self.n_eval += 1
+        q, qd = y[:9], y[9:18]
+        mem = y[18:18 + self.nm] if self.mode == "smooth" else dminus
+        Q = self.Qg.copy()
+        cinfo = [self.contact(j, q, qd, Q, mem[a]) for a, j in enumerate(self.cj)]
+        Phi, Pq, gam, Phid = self.constraints(t, q, qd)
+        PM = Pq * self.minv
+        rhs = gam - 2 * self.alpha * Phid - self.beta**2 * Phi
+        lam = np.linalg.solve(PM @ Pq.T, PM @ Q - rhs)
+        qdd = self.minv * (Q - Pq.T @ lam)
+        torque = -lam[-1]
+        ydot = [qd, qdd]
+        if self.mode == "smooth":
+            mdot = np.zeros(self.nc)
+            for a, ci in enumerate(cinfo):
+                w = memory_weight(ci["delta"], self.w_m)
+                if w > 0.0:
+                    eacc = _point_acc(qd, qdd, ci["k"], ci["AII"], ci["BII"]) - _point_acc(
+                        qd, qdd, ci["i"], ci["AI"], ci["BI"])
+                    dd = ci["n"] @ eacc
+                    if ci["e"] > 1e-15:
+                        dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / ci["e"]
+                    mdot[a] = w * (dd + self.k_m * (ci["ddelta"] - mem[a]))
+            ydot.append(mdot)
+        if self.track_work:
+            ydot.append([torque * qd[2]])
+        return np.concatenate(ydot), dict(qdd=qdd, lam=lam, torque=torque, contacts=cinfo)
+
+    def initial_state(self):
+        """Crank angle 0 (outer dead centre), ideal-joint positions/velocities, journals centred."""
+        q = np.array([R_CRANK / 2, 0, 0, R_CRANK + L_ROD / 2, 0, 0, R_CRANK + L_ROD, 0, 0], float)
+        full = SliderCrank(clearance_joints=(), rpm=self.omega * 30 / np.pi)
+        _, Pq, _, _ = full.constraints(0.0, q, np.zeros(9))
+        Phi_t = np.zeros(9)
+        Phi_t[-1] = -self.omega
+        qd = np.linalg.solve(Pq, -Phi_t)
+        y = np.zeros(self.n_state)
+        y[:9], y[9:18] = q, qd
+        if self.mode == "smooth":  # m = delta' (= 0 at the start, n arbitrary at e = 0)
+            y[18:18 + self.nm] = [self.contact(j, q, qd, np.zeros(9), 1.0)["ddelta"] for j in self.cj]
+        return y
+
+    def energy(self, y):
+        """Kinetic + contact potential (+ gravity) energy; in smooth mode the undamped law."""
+        qd = y[9:18]
+        T = 0.5 * np.sum(qd**2 / self.minv)
+        V = -self.Qg @ y[:9]
+        for j in self.cj:
+            d = self.contact(j, y[:9], qd, np.zeros(9), 1.0)["delta"]
+            if self.mode == "sharp":
+                V += 0.4 * self.K * max(d, 0.0) ** 2.5
+            else:
+                V += self.K * ramp(1.0, self.w_factor) * ramp_potential(d, self.w_delta)
+        return T + V
+
+
+def _delta_event(model, a, offset, direction, terminal):
+    j = model.cj[a]
+
+    def ev(t, y):
+        return model.contact(j, y[:9], y[9:18], np.zeros(9), 1.0)["delta"] + offset
+
+    ev.direction, ev.terminal = direction, terminal
+    return ev
+
+
+def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolution=360,
+             mode="smooth", method=None, rtol=1e-6, atol=1e-9, restitution=0.9, friction=None,
+             gravity=False, clearance=5e-4, max_step=np.inf, track_work=False, **smoothing):
+    """Simulate; returns dict of arrays on the uniform grid t plus 'stats'.
+
+    smoothing: w_delta, w_m, k_m, v_min, w_factor (smooth mode; v_min also floors the latched
+    impact velocity in sharp mode), alpha, beta (Baumgarte), bearing_radius, E, nu.
+    """
+    model = SliderCrank(clearance_joints, rpm, mode, restitution, friction, gravity, clearance,
+                        track_work=track_work, **smoothing)
+    method = method or ("Radau" if mode == "smooth" else "DOP853")
+    T = revolutions * 60.0 / rpm
+    npts = int(round(revolutions * points_per_revolution)) + 1
+    grid = np.linspace(0.0, T, npts)
+    y0 = model.initial_state()
+    t_wall = time.perf_counter()
+    errstate = np.errstate(over="ignore", invalid="ignore")  # rejected explicit trial steps
+    errstate.__enter__()
+    nfev, njev, onsets = 0, 0, np.zeros(model.nc, int)
+    ys, ctx = [], []  # output states and the latched impact velocities in force at each
+    if mode == "smooth":
+        events = [_delta_event(model, a, 0.0, 1, False) for a in range(model.nc)]
+        sol = solve_ivp(lambda t, y: model.evaluate(t, y)[0], (0.0, T), y0, method=method,
+                        t_eval=grid, events=events or None, rtol=rtol, atol=atol, max_step=max_step)
+        if sol.status < 0:
+            raise RuntimeError(sol.message)
+        nfev, njev = sol.nfev, sol.njev
+        onsets[:] = [len(te) for te in (sol.t_events or [])]
+        ys, ctx = list(sol.y.T), [None] * npts
+    else:
+        HYST = 1e-14  # m: exit event fires at delta = -1e-14 so it cannot stick at a restart
+        in_contact = np.zeros(model.nc, bool)
+        dminus = np.full(model.nc, model.v_min)
+        t0, y, nseg = 0.0, y0, 0
+        while len(ys) < npts:
+            nseg += 1
+            if nseg > 200000:
+                raise RuntimeError("too many contact events")
+            events = [_delta_event(model, a, HYST if in_contact[a] else 0.0,
+                                   -1 if in_contact[a] else 1, True) for a in range(model.nc)]
+            dm = dminus.copy()
+            sol = solve_ivp(lambda t, y: model.evaluate(t, y, dm)[0], (t0, T), y, method=method,
+                            t_eval=grid[len(ys):], events=events or None, rtol=rtol, atol=atol,
+                            max_step=max_step)
+            if sol.status < 0:
+                raise RuntimeError(sol.message)
+            nfev, njev = nfev + sol.nfev, njev + sol.njev
+            if len(sol.t):  # (scipy returns a plain [] when no t_eval point was reached)
+                ys += list(sol.y.T)
+                ctx += [dm] * len(sol.t)
+            if sol.status != 1:
+                break
+            hits = [(te[0], a) for a, te in enumerate(sol.t_events) if len(te)]
+            t0, a = min(hits)
+            y = sol.y_events[a][0]
+            in_contact[a] = not in_contact[a]
+            if in_contact[a]:
+                dd = model.contact(model.cj[a], y[:9], y[9:18], np.zeros(9), 1.0)["ddelta"]
+                dminus[a] = max(dd, model.v_min)
+                onsets[a] += 1
+    errstate.__exit__(None, None, None)
+    wall, n_eval = time.perf_counter() - t_wall, model.n_eval
+    Y = np.array(ys)
+    out = {k: np.zeros(npts) for k in ("slider_a", "crank_torque")}
+    out.update(t=grid, crank_angle=np.degrees(Y[:, 2]), slider_x=Y[:, 6], slider_v=Y[:, 15], y=Y)
+    for j in model.ij:
+        out[j + "_reaction"] = np.zeros(npts)
+    for j in model.cj:
+        for key in ("ecc_x", "ecc_y", "delta", "penetration", "normal_force", "friction_force"):
+            out[f"{j}_{key}"] = np.zeros(npts)
+    for p in range(npts):
+        _, info = model.evaluate(grid[p], Y[p], ctx[p])
+        out["slider_a"][p], out["crank_torque"][p] = info["qdd"][6], info["torque"]
+        for r, j in enumerate(model.ij):
+            out[j + "_reaction"][p] = np.hypot(*info["lam"][2 * r:2 * r + 2])
+        for j, ci in zip(model.cj, info["contacts"]):
+            out[j + "_ecc_x"][p], out[j + "_ecc_y"][p] = ci["e_vec"]
+            out[j + "_delta"][p], out[j + "_penetration"][p] = ci["delta"], max(ci["delta"], 0.0)
+            out[j + "_normal_force"][p], out[j + "_friction_force"][p] = ci["FN"], ci["FT"]
+    if track_work:
+        out["drive_work"] = Y[:, -1]
+        out["energy"] = np.array([model.energy(yy) for yy in Y])
+    out["stats"] = dict(nfev=nfev, njev=njev, rhs_evals=n_eval, onsets=dict(zip(model.cj, onsets.tolist())),
+                        wall_time=wall, method=method, mode=mode)
+    out["model"] = model
+    return out
+
+
+# ----------------------------------------------------------------------------- self-checks
+MODEL_MD_IDEAL = dict(a_min=-19419.0, a_max=9696.0, v_peak=28.41, torque_max=138.52,
+                      O=(3004.0, 8253.0), A=(948.0, 6197.0), B=(434.0, 2719.0))
+
+
+def check_ideal(points_per_revolution=3600, assert_ok=True):
+    """Ideal joints, 5000 rpm, no gravity: MODEL.md §6 numbers, closed form, torque sign by energy."""
+    r = simulate((), 5000, 1, points_per_revolution, mode="sharp", rtol=1e-11, atol=1e-13,
+                 track_work=True)
+    cf = ideal_closed_form(np.radians(r["crank_angle"]), 5000 * np.pi / 30)
+    dE = r["energy"] - r["energy"][0]  # kinetic energy change (no gravity, no contact)
+    res = dict(a_min=r["slider_a"].min(), a_max=r["slider_a"].max(),
+               v_peak=np.abs(r["slider_v"]).max(), torque_min=r["crank_torque"].min(),
+               torque_max=r["crank_torque"].max(),
+               **{j: (r[j + "_reaction"].min(), r[j + "_reaction"].max()) for j in "OAB"},
+               closed_form_err=dict(x=np.abs(cf["x"] - r["slider_x"]).max(),
+                                    v=np.abs(cf["v"] - r["slider_v"]).max(),
+                                    a=np.abs(cf["a"] - r["slider_a"]).max()),
+               work_minus_dKE=np.abs(r["drive_work"] - dE).max(),
+               work_plus_dKE=np.abs(r["drive_work"] + dE).max(), max_dKE=np.abs(dE).max())
+    if assert_ok:
+        ref = MODEL_MD_IDEAL
+        assert abs(res["a_min"] - ref["a_min"]) < 1 and abs(res["a_max"] - ref["a_max"]) < 1
+        assert abs(res["v_peak"] - ref["v_peak"]) < 0.01
+        assert abs(res["torque_max"] - ref["torque_max"]) < 0.01
+        assert abs(res["torque_min"] + ref["torque_max"]) < 0.01
+        for j in "OAB":
+            assert np.allclose(res[j], ref[j], atol=1.0), (j, res[j])
+        assert res["closed_form_err"]["x"] < 1e-9 and res["closed_form_err"]["a"] < 1e-3
+        assert res["work_minus_dKE"] < 1e-6 * res["max_dKE"]  # tau > 0: motor does work
+        assert res["work_plus_dKE"] > 0.5 * res["max_dKE"]  # the opposite sign would fail
+    return res
+
+
+def check_energy(mode="sharp", method=None, rtol=1e-10, revolutions=1.0, friction=None,
+                 assert_ok=True):
+    """Clearance at B, c = 0.5 mm, c_e = 1: E(t) - E(0) = drive work (frictionless);
+    with friction the difference W - dE (dissipation) must be >= 0 and non-decreasing."""
+    r = simulate(("B",), 5000, revolutions, 360, mode=mode, method=method, rtol=rtol,
+                 atol=rtol * 1e-3, restitution=1.0, friction=friction, track_work=True)
+    diss = r["drive_work"] - (r["energy"] - r["energy"][0])
+    res = dict(max_abs_error=np.abs(diss).max(), max_drive_work=np.abs(r["drive_work"]).max(),
+               final_dissipation=diss[-1], min_dissipation_increment=np.diff(diss).min(),
+               onsets=r["stats"]["onsets"]["B"], peak_normal_force=r["B_normal_force"].max())
+    if assert_ok:
+        assert res["onsets"] > 5
+        if friction is None:
+            assert res["max_abs_error"] < 1e-5 * res["max_drive_work"], res
+        else:
+            assert res["final_dissipation"] > 0 and res["min_dissipation_increment"] > -1e-4, res
+    return res
+
+
+def check_small_clearance(clearance=1e-6, mode="sharp", revolutions=2, rtol=1e-8, assert_ok=True):
+    """Clearance at B of 1 µm: slider motion and torque approach the ideal ones (2nd revolution)."""
+    ide = simulate((), 5000, revolutions, 360, mode="sharp", rtol=1e-11, atol=1e-13)
+    r = simulate(("B",), 5000, revolutions, 360, mode=mode, rtol=rtol, atol=rtol * 1e-3,
+                 clearance=clearance)
+    sel = r["t"] >= r["t"][-1] / revolutions * (revolutions - 1)
+
+    def rms(x):
+        return np.sqrt(np.mean(x[sel] ** 2))
+
+    res = dict(max_dx=np.abs(r["slider_x"] - ide["slider_x"])[sel].max(),
+               max_dv=np.abs(r["slider_v"] - ide["slider_v"])[sel].max(),
+               rel_rms_da=rms(r["slider_a"] - ide["slider_a"]) / rms(ide["slider_a"]),
+               rel_rms_dtorque=rms(r["crank_torque"] - ide["crank_torque"]) / rms(ide["crank_torque"]),
+               rel_rms_dforce=rms(r["B_normal_force"] - ide["B_reaction"]) / rms(ide["B_reaction"]),
+               max_penetration=r["B_penetration"].max(), onsets=r["stats"]["onsets"]["B"])
+    if assert_ok:
+        assert res["max_dx"] < 10 * clearance + 5e-6 and res["rel_rms_dtorque"] < 0.05, res
+    return res
+
+
+def check_smooth_vs_sharp(t_end=2e-3, window=0.5e-3, joints=("B",), rtol=1e-11,
+                          smooth_method="DOP853", widths=(1e-7,), assert_ok=True):
+    """Max |e_smooth - e_sharp| (µm) of each joint's eccentricity vector per time window, at tight
+    tolerances, for each smoothing width (w_delta = w_m = width, w_factor = 1e4 * width)."""
+    rev = t_end * 5000 / 60
+    kw = dict(rpm=5000, revolutions=rev, points_per_revolution=round(t_end / 2e-6) / rev,
+              rtol=rtol, atol=rtol * 1e-3)
+    sharp = simulate(joints, mode="sharp", **kw)
+    t, edges = sharp["t"], np.arange(0.0, t_end + 1e-12, window)
+    wins = list(zip(edges[:-1], edges[1:]))
+    res = dict(windows_ms=[(a * 1e3, b * 1e3) for a, b in wins], sharp_onsets=sharp["stats"]["onsets"])
+    for w in widths:
+        sm = simulate(joints, mode="smooth", method=smooth_method, w_delta=w, w_m=w,
+                      w_factor=1e4 * w, **kw)
+        res[w] = dict(onsets=sm["stats"]["onsets"])
+        for j in joints:
+            d = 1e6 * np.hypot(sm[j + "_ecc_x"] - sharp[j + "_ecc_x"], sm[j + "_ecc_y"] - sharp[j + "_ecc_y"])
+            res[w][j + "_max_diff_um"] = [d[(t > a) & (t <= b)].max() for a, b in wins]
+    if assert_ok and 1e-7 in widths:
+        worst = max(v[0] for k, v in res[1e-7].items() if k.endswith("_um"))
+        assert worst < 1.0, res  # < 1 µm in the first window (later ones amplify, §5b)
+    return res
+
+
+def timings(joint_sets=(("B",), ("O", "A", "B")), methods=(("smooth", "Radau"),), rtol=1e-6):
+    """Wall time and evaluation counts, 2 revolutions at 5000 rpm."""
+    out = {}
+    for js in joint_sets:
+        for mode, method in methods:
+            s = simulate(js, 5000, 2, 360, mode=mode, method=method, rtol=rtol, atol=1e-9)["stats"]
+            out[("".join(js), mode, method)] = s
+    return out
+
+
+if __name__ == "__main__":
+    for name, fn in [("ideal", check_ideal), ("energy sharp", check_energy),
+                     ("energy smooth Radau", lambda: check_energy("smooth", "Radau", 1e-8)),
+                     ("energy sharp, Coulomb mu=0.1", lambda: check_energy(friction=("coulomb", 0.1, 1e-4))),
+                     ("small clearance", check_small_clearance),
+                     ("smooth vs sharp", lambda: check_smooth_vs_sharp(widths=(1e-7, 1e-8, 1e-9)))]:
+        print(name, fn())
+    for key, s in timings(methods=(("smooth", "Radau"), ("smooth", "DOP853"), ("sharp", "DOP853"))).items():
+        print(key, s)

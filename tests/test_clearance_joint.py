@@ -1,0 +1,226 @@
+"""Revolute clearance joint in the slider–crank: limits, energy, gradients, batching, bad input.
+
+One static configuration (clearance at B, Lankarani–Nikravesh with an explicit stiffness, no
+friction, Tsit5) is compiled once per module and shared: clearance, stiffness and restitution are
+array leaves, so changing them does not recompile.
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxclear
+from jaxclear._simulate import _simulate_core, assemble
+from jaxclear.analysis import drive_work, kinetic_energy
+from jaxclear.contact import ContactGeometry, Hybrid, LankaraniNikravesh, Smoothing
+from jaxclear.friction import LuGre, NoFriction
+from jaxclear.mechanisms import slider_crank
+from jaxclear.model._clearance import ClearanceJoint
+
+RPM = 5000.0
+OMEGA = RPM * 2 * np.pi / 60
+PERIOD = 2 * np.pi / OMEGA
+HERTZ_K = float(ContactGeometry(0.01, 0.0095).hertz_stiffness)
+NUM_POINTS = 4001  # one output grid for the whole module: a new length would recompile
+SOLVER = jaxclear.SolverConfig(method="tsit5", rtol=1e-8, atol=1e-11, max_steps=400_000)
+
+
+def build(clearance, stiffness, restitution):
+    return slider_crank(
+        rpm=RPM,
+        clearance_joints="B",
+        clearance=clearance,
+        contact_law=LankaraniNikravesh(stiffness=stiffness, restitution=restitution),
+        friction_law=NoFriction(),
+    )
+
+
+def run(clearance, stiffness=HERTZ_K, restitution=0.9, revolutions=1.0):
+    return jaxclear.simulate(
+        build(clearance, stiffness, restitution), revolutions * PERIOD, num_points=NUM_POINTS, solver=SOLVER
+    )
+
+
+def closed_form_slider(t, r=0.05, l=0.12):
+    th = OMEGA * t
+    root = np.sqrt(l**2 - (r * np.sin(th)) ** 2)
+    x = r * np.cos(th) + root
+    return x
+
+
+# --- clearance -> 0 with stiff contact recovers the ideal joint ------------------------------------
+LIMIT_CASES = [(1e-4, 1.0), (1e-5, 10.0), (1e-6, 100.0)]  # (clearance m, stiffness / Hertz K)
+LIMIT_POSITION_TOL = 5e-6  # m: journal offset c + δ ≈ 1 µm + 0.6 µm at the tightest case
+
+
+@pytest.fixture(scope="module")
+def limit_runs():
+    return [run(c, k * HERTZ_K, restitution=0.5) for c, k in LIMIT_CASES]
+
+
+def test_small_clearance_approaches_ideal(limit_runs):
+    errors, accel_errors = [], []
+    for traj in limit_runs:
+        t = np.asarray(traj.t)
+        x = np.asarray(traj.coordinates("slider")[:, 0])
+        errors.append(np.max(np.abs(x - closed_form_slider(t))))
+        a = np.asarray(traj.accelerations("slider")[:, 0])
+        a_ideal = np.gradient(np.gradient(closed_form_slider(t), t), t)
+        inner = slice(5, -5)  # np.gradient is one-sided at the ends
+        accel_errors.append(np.sqrt(np.mean((a - a_ideal)[inner] ** 2)) / np.sqrt(np.mean(a_ideal[inner] ** 2)))
+    print("max |x - x_ideal| per case (m):", errors, "relative RMS accel error:", accel_errors)
+    assert all(e1 > e2 for e1, e2 in zip(errors, errors[1:])), errors
+    assert errors[-1] < LIMIT_POSITION_TOL
+    assert accel_errors[-1] < accel_errors[0]
+
+
+# --- energy: frictionless, elastic contact conserves energy up to the drive's work -------------------
+ENERGY_REL_TOL = 2e-3  # of the peak kinetic energy; the trapezoid drive work on a 4000-point grid dominates
+
+
+@pytest.fixture(scope="module")
+def elastic_run():
+    mech = slider_crank(
+        rpm=RPM,
+        clearance_joints="B",
+        clearance=5e-4,
+        contact_law=LankaraniNikravesh(stiffness=HERTZ_K, restitution=1.0),
+        friction_law=NoFriction(),
+    )
+    return jaxclear.simulate(mech, 0.5 * PERIOD, num_points=NUM_POINTS, solver=SOLVER)
+
+
+def test_elastic_frictionless_energy_balance(elastic_run):
+    traj = elastic_run
+    pen = np.asarray(traj.clearance["B"]["penetration"])
+    assert np.any(pen > 0), "the run must contain impacts for the balance to mean anything"
+    free = pen < 0  # contact potential energy is zero in free flight
+    kinetic = np.asarray(kinetic_energy(traj))
+    balance = kinetic - kinetic[0] - drive_work(traj)
+    scale = kinetic.max()
+    worst = np.max(np.abs(balance[free])) / scale
+    print(f"energy balance error in free flight: {worst:.2e} of peak kinetic energy {scale:.2f} J")
+    assert worst < ENERGY_REL_TOL
+
+
+# --- finite gradients at e = 0, δ = 0, v_T = 0 --------------------------------------------------------
+@pytest.mark.parametrize("law", [LankaraniNikravesh(), Hybrid()], ids=["lankarani-nikravesh", "hybrid"])
+def test_finite_jacobians_at_singular_points(law):
+    mech = slider_crank(clearance_joints="B", contact_law=law, friction_law=LuGre())
+    y0 = assemble(mech)
+    joint = mech.clearance_joints[0]
+    n = mech.num_coordinates
+    q, qd = y0[:n], y0[n : 2 * n]
+    state = y0[2 * n :]
+    c = float(joint.geometry.clearance)
+    slider = 3 * mech.index("slider")
+
+    def force(q, qd, state):
+        return joint.generalized_force(mech.index, q, qd, 0.0, state)
+
+    cases = {
+        "centred (e = 0)": q,
+        "touching (δ = 0)": q.at[slider].add(c),
+        "penetrating, no slip": q.at[slider].add(c + 1e-6),
+    }
+    for label, qq in cases.items():
+        for jac in jax.jacfwd(force, argnums=(0, 1, 2))(qq, qd * 0.0, state):
+            assert np.all(np.isfinite(np.asarray(jac))), label
+
+
+# --- gradient through a simulation against central finite differences -------------------------------
+GRAD_HORIZON = 0.05 * PERIOD  # short: contains the first impact (≈75 µm) but not the chaotic long run
+GRAD_REL_TOL = 2e-3  # central differences of an adaptive solve at rtol 1e-10 agree to ~1e-3 here
+
+
+def test_gradient_wrt_clearance_matches_finite_difference():
+    ts = jnp.linspace(0.0, GRAD_HORIZON, 8)
+    config = jaxclear.SolverConfig(method="tsit5", rtol=1e-10, atol=1e-13, max_steps=100_000)
+
+    def final_eccentricity(clearance):
+        traj = _simulate_core(
+            build(clearance, HERTZ_K, 0.9), ts, jnp.asarray(0.0), jnp.asarray(GRAD_HORIZON), None, config, False
+        )
+        return traj.clearance["B"]["ecc_x"][-1]
+
+    c0 = 5e-4
+    grad = float(jax.grad(final_eccentricity)(c0))
+    h = 1e-9
+    fd = float((final_eccentricity(c0 + h) - final_eccentricity(c0 - h)) / (2 * h))
+    print(f"d ecc_x / d c: grad {grad:.6g}, central difference {fd:.6g}")
+    assert np.isfinite(grad)
+    assert abs(grad - fd) <= GRAD_REL_TOL * max(abs(fd), 1e-3)
+
+
+# --- vmap over clearance equals a loop ---------------------------------------------------------------
+def test_batch_equals_loop(limit_runs):
+    clearances = jnp.array([c for c, _ in LIMIT_CASES[:2]])
+    stiffness = jnp.array([k * HERTZ_K for _, k in LIMIT_CASES[:2]])
+    batch = jaxclear.simulate_batch(
+        lambda p: build(p[0], p[1], 0.5), (clearances, stiffness), PERIOD, num_points=NUM_POINTS, solver=SOLVER
+    )
+    assert np.all(np.asarray(batch.succeeded))
+    for k in range(2):
+        np.testing.assert_allclose(batch.q[k], limit_runs[k].q, rtol=0, atol=1e-9)
+
+
+def test_no_recompile_for_new_clearance(limit_runs):
+    before = _simulate_core._cached._cache_size()
+    run(2e-4, HERTZ_K, 0.5, revolutions=0.1)
+    assert _simulate_core._cached._cache_size() == before
+
+
+# --- bad input ----------------------------------------------------------------------------------------
+def _revolute():
+    return jaxclear.RevoluteJoint("B", "rod", (0.06, 0.0), "slider", (0.0, 0.0))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(geometry=ContactGeometry(0.01, 0.01)), "journal_radius"),
+        (dict(geometry=ContactGeometry(0.01, 0.011)), "journal_radius"),
+        (dict(clearance=0.0), "clearance must be > 0"),
+        (dict(clearance=-1e-4), "clearance must be > 0"),
+        (dict(geometry=ContactGeometry(0.01, 0.0095, bearing_poisson=0.5)), "bearing_poisson"),
+        (dict(geometry=ContactGeometry(0.01, 0.0095, journal_poisson=0.0)), "journal_poisson"),
+        (dict(geometry=ContactGeometry(0.01, 0.0095, bearing_young=-1.0)), "bearing_young"),
+        (dict(smoothing=Smoothing(penetration_width=0.0)), "penetration_width"),
+        (dict(smoothing=Smoothing(velocity_width=-1.0)), "velocity_width"),
+        (dict(initial_eccentricity=(1e-3, 0.0)), "initial_eccentricity"),
+    ],
+)
+def test_bad_clearance_joint_input(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ClearanceJoint.replacing(_revolute(), **kwargs)
+
+
+def test_bad_law_parameters_and_names():
+    with pytest.raises(ValueError, match="stiffness"):
+        LankaraniNikravesh(stiffness=-1.0)
+    with pytest.raises(ValueError, match="restitution"):
+        LankaraniNikravesh(restitution=1.5)
+    with pytest.raises(ValueError, match="restitution"):
+        LankaraniNikravesh(restitution=0.0)
+    with pytest.raises(ValueError, match="m1|gauss"):
+        Hybrid(num_gauss_points=0)
+    with pytest.raises(ValueError, match="m2|elements"):
+        Hybrid(num_elements=0)
+    with pytest.raises(ValueError, match="unknown|Unknown"):
+        jaxclear.contact.contact_law_from_name("hertzian")
+    with pytest.raises(ValueError, match="unknown|Unknown"):
+        jaxclear.friction.friction_law_from_name("stribeck")
+    with pytest.raises(jaxclear.ModelError, match="among O, A, B"):
+        slider_crank(clearance_joints="C")
+    with pytest.raises(TypeError, match="unknown option"):
+        slider_crank(clearance_joints="B", clearence=1e-4)
+
+
+def test_clearance_joint_outputs_and_tree_at():
+    mech = build(5e-4, HERTZ_K, 0.9)
+    # clearance is an array leaf reachable by eqx.tree_at (what identification differentiates)
+    leaf = eqx.tree_at(lambda m: m.clearance_joints[0].geometry.journal_radius, mech, 0.0099)
+    assert float(leaf.clearance_joints[0].geometry.clearance) == pytest.approx(1e-4)
+    assert mech.degrees_of_freedom == 2
