@@ -452,7 +452,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     say = (lambda *a, **k: None) if quiet else print
     rpm, revs = config["mechanism"]["rpm"], config["simulation"]["revolutions"]
     say(
-        f"jaxclear {__version__}: slider-crank, ideal joints, {rpm:g} rpm, {revs:g} revolutions "
+        f"jaxclear {__version__}: slider-crank, ideal joints, {rpm:g} rpm, {revs:g} rev "
         f"({t1:.6g} s, {num_points} points), solver {config['solver']['method']} "
         f"({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
     )
