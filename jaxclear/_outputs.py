@@ -75,7 +75,7 @@ def driven_angle_deg(traj) -> np.ndarray:
     return np.degrees(np.unwrap(phi))
 
 
-def result_columns(traj) -> list[Column]:
+def result_columns(traj, continuous_fraction: float | None = None) -> list[Column]:
     """Named output columns of a single (unbatched) trajectory, in file order.
 
     Columns: ``t``; for a driven mechanism ``<body>_angle`` (deg) and ``<body>_torque`` (N m) of the
@@ -164,6 +164,16 @@ def result_columns(traj) -> list[Column]:
                 flat = value.reshape(value.shape[0], -1)
                 for k in range(flat.shape[1]):
                     cols.append(Column(f"{name}_{key}_{k}", unit, f"{description} [{k}] at clearance joint {name!r}", flat[:, k]))
+    if traj.clearance:
+        from .analysis import MODE_NAMES, trajectory_modes
+        from .analysis._modes import DEFAULT_CONTINUOUS_FRACTION
+
+        legend = ", ".join(f"{k} {v}" for k, v in MODE_NAMES.items())
+        fraction = DEFAULT_CONTINUOUS_FRACTION if continuous_fraction is None else continuous_fraction
+        for name, labels in trajectory_modes(traj, fraction).items():
+            cols.append(
+                Column(f"{name}_mode", "", f"contact mode at clearance joint {name!r} ({legend})", labels.astype(float))
+            )
     cols += [
         Column("constraint_violation", "m", "max |Phi| over constraint rows (m or rad)", np.asarray(traj.constraint_violation)),
         Column("velocity_violation", "m/s", "max |dPhi/dt| over constraint rows (m/s or rad/s)", np.asarray(traj.velocity_violation)),
@@ -277,20 +287,21 @@ def column_summary(columns: list[Column]) -> dict:
     return out
 
 
-def write_results(out_dir: Path, traj, run_info: dict) -> dict[str, Path]:
+def write_results(out_dir: Path, traj, run_info: dict, continuous_fraction: float | None = None) -> dict[str, Path]:
     """Write results.npz, results.csv and (last) run.json into ``out_dir``.
 
     Args:
         out_dir: output folder (created if missing).
         traj: a successful single ``Trajectory``.
         run_info: configuration, timings, ... merged into run.json.
+        continuous_fraction: contact-mode threshold (fraction of a crank period) for ``<J>_mode``.
 
     Returns:
         ``{"csv": path, "npz": path, "run_json": path}``.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    columns = result_columns(traj)
+    columns = result_columns(traj, continuous_fraction)
     paths = {"npz": write_npz(out_dir / NPZ_NAME, columns), "csv": write_csv(out_dir / CSV_NAME, columns)}
     info = dict(run_info)
     info["columns"] = column_summary(columns)

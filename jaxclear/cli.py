@@ -83,17 +83,22 @@ class Setting:
 def _solver_names() -> tuple[str, ...]:
     from ._solver import METHODS, PRESETS
 
-    return tuple(PRESETS) + tuple(METHODS)
+    return ("auto",) + tuple(PRESETS) + tuple(METHODS)
 
 
 def _solver_help() -> str:
     from ._solver import METHODS, PRESETS
 
-    return f"preset ({', '.join(PRESETS)}) or diffrax method ({', '.join(METHODS)})"
+    return (
+        f"auto (imex with LuGre friction, else fast), a preset ({', '.join(PRESETS)}) "
+        f"or a diffrax method ({', '.join(METHODS)})"
+    )
 
 
-DEFAULT_SOLVER = "fast"
-"""Default preset: explicit Tsit5, fastest for ideal joints (no stiffness; MODEL.md §5b)."""
+DEFAULT_SOLVER = "auto"
+"""Default: ``auto`` picks ``fast`` (explicit Tsit5) for ideal joints and frictionless or
+Coulomb-type contact, ``imex`` (KenCarp5, LuGre's stiff state implicit) with LuGre friction
+(MODEL.md §5b)."""
 
 SETTINGS: tuple[Setting, ...] = (
     # [mechanism]: the benchmark slider-crank, MODEL.md §6
@@ -117,6 +122,38 @@ SETTINGS: tuple[Setting, ...] = (
         "--gravity",
         "nonnegative",
         flag_help="switch gravity (9.81 m/s^2 along -y) on or off; a different magnitude goes in the config file",
+    ),
+    # [clearance]: revolute clearance joints, MODEL.md §2-§5
+    Setting(
+        "clearance", "joints", str, "O,A,B", "",
+        "clearance joints among O (ground-crank), A (crank-rod), B (rod-slider), comma-separated, or none",
+        "--clearance-joints",
+    ),
+    Setting("clearance", "clearance", float, 5e-4, "m", "radial clearance c = R_B - R_J", "--clearance", "positive"),
+    Setting("clearance", "bearing_radius", float, 0.01, "m", "bearing (hole) radius R_B", None, "positive"),
+    Setting("clearance", "pin_length", float, 0.01, "m", "pin length h (cylindrical and foundation laws)", None, "positive"),
+    Setting("clearance", "young_modulus", float, 207e9, "Pa", "Young's modulus E of bearing and journal", None, "positive"),
+    Setting("clearance", "poisson_ratio", float, 0.3, "", "Poisson's ratio of bearing and journal, in (0, 0.5)", None, "positive"),
+    Setting("clearance", "contact", str, "hybrid", "", "normal contact law (kebab case: hybrid, lankarani-nikravesh, hertz, ...)", "--contact"),
+    Setting("clearance", "restitution", float, 0.9, "", "restitution coefficient c_e in (0, 1] (damped laws)", "--restitution", "positive"),
+    Setting("clearance", "gauss_points", int, 3, "", "hybrid law: Gauss points per element m1", None, "positive"),
+    Setting("clearance", "elements", int, 10, "", "hybrid law: elements over the contact arc m2", None, "positive"),
+    Setting("clearance", "friction", str, "lugre", "", "friction law: none, coulomb, modified-coulomb, lugre", "--friction"),
+    Setting(
+        "clearance", "friction_coefficient", float, None, "",
+        "friction coefficient mu (mu_k for LuGre); default: the law's (0.1)", "--friction-coefficient", "nonnegative",
+    ),
+    Setting("clearance", "static_friction", float, None, "", "LuGre static coefficient mu_s (default 0.15)", None, "nonnegative"),
+    Setting("clearance", "bristle_stiffness", float, None, "1/m", "LuGre sigma0 (default 1e5)", None, "positive"),
+    Setting("clearance", "bristle_damping", float, None, "s/m", "LuGre sigma1 (default 316)", None, "nonnegative"),
+    Setting("clearance", "stribeck_velocity", float, None, "m/s", "LuGre Stribeck velocity v_s (default 1e-3)", None, "positive"),
+    Setting("clearance", "penetration_width", float, 1e-7, "m", "smoothing width of the penetration", None, "positive"),
+    Setting("clearance", "memory_width", float, 1e-7, "m", "smoothing width of the impact-velocity memory freeze", None, "positive"),
+    Setting("clearance", "velocity_width", float, 1e-5, "m/s", "smoothing width of |v| and sign(v)", None, "positive"),
+    Setting("clearance", "memory_rate", float, 1e6, "1/s", "relaxation rate k_m of the impact-velocity memory", None, "positive"),
+    Setting(
+        "clearance", "continuous_fraction", float, 0.05, "",
+        "contact lasting at least this fraction of a crank period counts as continuous (else impact)", None, "positive",
     ),
     # [simulation]
     Setting("simulation", "revolutions", float, 2.0, "rev", "simulated crank revolutions (may be fractional)", "--revolutions", "positive"),
@@ -371,6 +408,9 @@ def _solver(config: dict, sources: dict):
 
     section = config["solver"]
     name = section["method"]
+    if name == "auto":
+        names = _clearance_names(config)
+        name = "imex" if names and config["clearance"]["friction"] == "lugre" else "fast"
     if name not in _solver_names():
         source = sources[("solver", "method")]
         raise UsageError(f"{source}: solver {name!r} is unknown; choose a {_solver_help()}")
@@ -380,12 +420,78 @@ def _solver(config: dict, sources: dict):
     return solver.replace(**changes) if changes else solver
 
 
-def _mechanism(config: dict):
+def _clearance_names(config: dict) -> list[str]:
+    text = config["clearance"]["joints"].strip()
+    if text.lower() in ("", "none"):
+        return []
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    bad = [n for n in names if n not in ("O", "A", "B")]
+    if bad or len(set(names)) != len(names):
+        raise UsageError(f"--clearance-joints must list distinct joints among O, A, B (or 'none'), got {text!r}")
+    return names
+
+
+def _clearance_options(config: dict) -> dict:
+    """ClearanceJoint options (geometry, laws, smoothing) from the [clearance] settings."""
+    from .contact import CONTACT_LAWS, ContactGeometry, Smoothing, contact_law_from_name
+    from .friction import FRICTION_LAWS, friction_law_from_name
+
+    c = config["clearance"]
+    if c["contact"] not in CONTACT_LAWS:
+        raise UsageError(f"--contact {c['contact']!r} is unknown; choose one of {', '.join(CONTACT_LAWS)}")
+    if c["friction"] not in FRICTION_LAWS:
+        raise UsageError(f"--friction {c['friction']!r} is unknown; choose one of {', '.join(FRICTION_LAWS)}")
+    if c["clearance"] >= c["bearing_radius"]:
+        raise UsageError(f"clearance {c['clearance']} m must be smaller than bearing_radius {c['bearing_radius']} m")
+    geometry = ContactGeometry(
+        c["bearing_radius"], c["bearing_radius"] - c["clearance"], length=c["pin_length"],
+        bearing_young=c["young_modulus"], journal_young=c["young_modulus"],
+        bearing_poisson=c["poisson_ratio"], journal_poisson=c["poisson_ratio"],
+    )
+    contact_cls = CONTACT_LAWS[c["contact"]]
+    fields = {f.name for f in dataclasses.fields(contact_cls)}
+    contact_params = {"restitution": c["restitution"]} if "restitution" in fields else {}
+    if "num_gauss_points" in fields:
+        contact_params.update(num_gauss_points=c["gauss_points"], num_elements=c["elements"])
+    friction_cls = FRICTION_LAWS[c["friction"]]
+    ffields = {f.name for f in dataclasses.fields(friction_cls)}
+    mu = c["friction_coefficient"]
+    friction_params = {}
+    if mu is not None:
+        key = "kinetic_friction" if "kinetic_friction" in ffields else "friction_coefficient"
+        if key not in ffields:
+            raise UsageError(f"--friction-coefficient does not apply to friction law {c['friction']!r}")
+        friction_params[key] = mu
+    for key in ("static_friction", "bristle_stiffness", "bristle_damping", "stribeck_velocity"):
+        if c[key] is not None:
+            if key not in ffields:
+                raise UsageError(f"[clearance] {key} applies to the lugre friction law only")
+            friction_params[key] = c[key]
+    smoothing = Smoothing(
+        penetration_width=c["penetration_width"], memory_width=c["memory_width"],
+        velocity_width=c["velocity_width"], memory_rate=c["memory_rate"],
+    )
+    return dict(
+        geometry=geometry,
+        contact_law=contact_law_from_name(c["contact"], **contact_params),
+        friction_law=friction_law_from_name(c["friction"], **friction_params),
+        smoothing=smoothing,
+    )
+
+
+def _mechanism(config: dict, clearance: bool = True):
     from .mechanisms import slider_crank
 
     m = dict(config["mechanism"])
     gravity = m.pop("gravity")
-    return slider_crank(**{k: float(v) for k, v in m.items()}, gravity=gravity if isinstance(gravity, bool) else float(gravity))
+    names = _clearance_names(config) if clearance else []
+    options = _clearance_options(config) if names else {}
+    return slider_crank(
+        **{k: float(v) for k, v in m.items()},
+        gravity=gravity if isinstance(gravity, bool) else float(gravity),
+        clearance_joints=names,
+        **options,
+    )
 
 
 def _grid(config: dict) -> tuple[float, int]:
@@ -427,6 +533,13 @@ def _timed_simulate(mechanism, t1: float, num_points: int, solver, progress: boo
     return traj, compile_time, time.perf_counter() - start
 
 
+def _mode_shares(traj, config: dict) -> dict:
+    """Time share of each combination of contact modes over the saved instants (MODEL.md §7)."""
+    from .analysis import combination_shares, trajectory_modes
+
+    return combination_shares(trajectory_modes(traj, config["clearance"]["continuous_fraction"]))
+
+
 def _one_line(error: BaseException) -> str:
     text = " ".join(str(error).split())
     return text or type(error).__name__
@@ -451,8 +564,16 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     progress = not (quiet or args.no_progress) and sys.stderr.isatty()
     say = (lambda *a, **k: None) if quiet else print
     rpm, revs = config["mechanism"]["rpm"], config["simulation"]["revolutions"]
+    names = _clearance_names(config)
+    cl = config["clearance"]
+    joints_text = (
+        f"clearance joints {','.join(names)} (c = {cl['clearance'] * 1e3:g} mm, {cl['contact']} contact, "
+        f"{cl['friction']} friction)"
+        if names
+        else "ideal joints"
+    )
     say(
-        f"jaxclear {__version__}: slider-crank, ideal joints, {rpm:g} rpm, {revs:g} rev "
+        f"jaxclear {__version__}: slider-crank, {joints_text}, {rpm:g} rpm, {revs:g} rev "
         f"({t1:.6g} s, {num_points} points), solver {config['solver']['method']} "
         f"({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
     )
@@ -466,13 +587,19 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     except SimulationError as e:
         raise RunError(_one_line(e)) from None
 
+    reference = None
+    if names and config["output"]["plots"]:
+        say("ideal-joint reference run for the plots ...", flush=True)
+        from ._simulate import simulate
+
+        reference = _block(simulate(_mechanism(config, clearance=False), t1, num_points=num_points, solver="fast"))
     files = []
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         if config["output"]["plots"]:
             from .plot import save_standard_plots
 
-            files = [p.name for p in save_standard_plots(traj, out_dir)]
+            files = [p.name for p in save_standard_plots(traj, out_dir, reference=reference)]
         import jax
 
         info = dict(
@@ -484,7 +611,8 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             config=config,
             sources={f"{sec}.{key}": src for (sec, key), src in sources.items()},
             mechanism="slider_crank",
-            clearance_joints=[],
+            clearance_joints=names,
+            contact_mode_shares=_mode_shares(traj, config) if names else {},
             t_end_s=t1,
             num_points=num_points,
             solver={f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)},
@@ -501,7 +629,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             jax_backend=jax.default_backend(),
             files=files,
         )
-        paths = write_results(out_dir, traj, info)
+        paths = write_results(out_dir, traj, info, config["clearance"]["continuous_fraction"])
     except OSError as e:
         raise RunError(f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder") from None
 

@@ -193,11 +193,60 @@ def plot_constraint_violation(traj, *, reference=None, ax=None) -> Figure:
     return plot_vs_time(traj, "constraint_violation", reference=reference, log=True, ax=ax)
 
 
+def plot_orbit(traj, joint: str, *, ax=None) -> Figure:
+    """Journal-centre orbit of a clearance joint relative to its bearing, with the clearance circle.
+
+    Points in contact (penetration > 0) are drawn on top in a second colour.
+    """
+    fig, ax = _new_axes(ax)
+    out = traj.clearance[joint]
+    ex, ey = np.asarray(out["ecc_x"]) * 1e3, np.asarray(out["ecc_y"]) * 1e3
+    c = float(traj.mechanism.clearance_joints[[j.name for j in traj.mechanism.clearance_joints].index(joint)].geometry.clearance)
+    circle = np.linspace(0, 2 * np.pi, 361)
+    ax.plot(1e3 * c * np.cos(circle), 1e3 * c * np.sin(circle), color="k", linestyle="--", linewidth=1.0, label="clearance circle")
+    ax.plot(ex, ey, color="C0", linewidth=0.8, label="journal centre")
+    contact = np.asarray(out["penetration"]) > 0
+    ax.plot(ex[contact], ey[contact], ".", color="C3", markersize=2, label="in contact")
+    ax.set_aspect("equal")
+    lim = 1.15e3 * max(c, float(np.max(np.hypot(ex, ey))) / 1e3)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_xlabel("Eccentricity x (mm)")
+    ax.set_ylabel("Eccentricity y (mm)")
+    ax.set_title(f"Journal-centre orbit at clearance joint {joint} (c = {c * 1e3:g} mm)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper right", fontsize="small")
+    return fig
+
+
+def plot_contact_forces(traj, *, ax=None) -> Figure:
+    """Normal contact force of every clearance joint against crank angle."""
+    fig, ax = _new_axes(ax)
+    for k, name in enumerate(traj.clearance):
+        angle, force = _curve(traj, f"{name}_normal_force", "angle")
+        ax.plot(angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
+    ax.set_xlabel("Crank angle (°)")
+    ax.set_ylabel("Normal contact force (kN)")
+    ax.set_title(f"Normal contact force{_speed_label(traj)}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    return fig
+
+
+def _save(fig, out_dir: Path, filename: str, dpi: int) -> Path:
+    path = out_dir / filename
+    tmp = out_dir / f".{filename}.tmp.png"
+    fig.savefig(tmp, dpi=dpi)
+    tmp.replace(path)
+    return path
+
+
 def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> list[Path]:
     """Write the standard PNGs of a slider–crank run into ``out_dir`` (created if missing).
 
     Files: slider_position.png, slider_velocity.png, slider_acceleration.png, crank_torque.png
-    (against crank angle) and constraint_violation.png (against time, log axis); plots whose
+    (against crank angle) and constraint_violation.png (against time, log axis); with clearance
+    joints also normal_force.png (against crank angle) and orbit_<joint>.png per joint; plots whose
     quantity the mechanism lacks (no slider, no driver) are skipped.
 
     Args:
@@ -224,9 +273,9 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
             fig = plot_constraint_violation(traj, reference=reference)
         else:
             fig = plot_vs_time(traj, quantity, reference=reference)
-        path = out_dir / filename
-        tmp = out_dir / f".{filename}.tmp.png"
-        fig.savefig(tmp, dpi=dpi)
-        tmp.replace(path)
-        written.append(path)
+        written.append(_save(fig, out_dir, filename, dpi))
+    if traj.clearance and traj.mechanism.driver is not None:
+        written.append(_save(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
+        for name in traj.clearance:
+            written.append(_save(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))
     return written
