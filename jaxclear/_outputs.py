@@ -83,8 +83,8 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     ``slider``: ``slider_x``, ``slider_v``, ``slider_a``; for every ideal revolute joint the force
     that its body_j exerts on its body_i, ``<joint>_Fx``, ``<joint>_Fy`` (N); for every ideal
     translational joint the moment and normal force the guide exerts on the slider,
-    ``<joint>_moment`` (N m) and ``<joint>_normal`` (N); per clearance joint its outputs as
-    ``<joint>_<output>``; then ``constraint_violation`` and ``velocity_violation``.
+    ``<joint>_moment`` (N m) and ``<joint>_normal`` (N); per clearance joint, in the mechanism's order,
+    its outputs as ``<joint>_<output>`` (``CLEARANCE_OUTPUTS`` order) and its contact mode ``<joint>_mode``; then ``constraint_violation`` and ``velocity_violation``.
 
     Raises:
         ValueError: ``traj`` is batched.
@@ -154,25 +154,29 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
         else:
             for k in range(lam.shape[1]):
                 cols.append(Column(f"{joint.name}_lambda{k}", "", f"Lagrange multiplier {k} of joint {joint.name!r}", lam[:, k]))
-    for name, outputs in traj.clearance.items():
-        for key, value in outputs.items():
-            value = np.asarray(value, dtype=float)
-            unit, description = CLEARANCE_OUTPUTS.get(key, ("", key.replace("_", " ")))
-            if value.ndim == 1:
-                cols.append(Column(f"{name}_{key}", unit, f"{description} at clearance joint {name!r}", value))
-            else:
-                flat = value.reshape(value.shape[0], -1)
-                for k in range(flat.shape[1]):
-                    cols.append(Column(f"{name}_{key}_{k}", unit, f"{description} [{k}] at clearance joint {name!r}", flat[:, k]))
     if traj.clearance:
         from .analysis import MODE_NAMES, trajectory_modes
         from .analysis._modes import DEFAULT_CONTINUOUS_FRACTION
 
         legend = ", ".join(f"{k} {v}" for k, v in MODE_NAMES.items())
         fraction = DEFAULT_CONTINUOUS_FRACTION if continuous_fraction is None else continuous_fraction
-        for name, labels in trajectory_modes(traj, fraction).items():
+        modes = trajectory_modes(traj, fraction)
+        # traj.clearance comes back from JAX with its keys sorted; write the joints in the
+        # mechanism's order and each joint's outputs in CLEARANCE_OUTPUTS order, then its mode.
+        for name in clearance_joint_names(traj):
+            outputs = traj.clearance[name]
+            keys = [k for k in CLEARANCE_OUTPUTS if k in outputs] + sorted(k for k in outputs if k not in CLEARANCE_OUTPUTS)
+            for key in keys:
+                value = np.asarray(outputs[key], dtype=float) + 0.0  # + 0.0: no '-0' in the CSV
+                unit, description = CLEARANCE_OUTPUTS.get(key, ("", key.replace("_", " ")))
+                if value.ndim == 1:
+                    cols.append(Column(f"{name}_{key}", unit, f"{description} at clearance joint {name!r}", value))
+                else:
+                    flat = value.reshape(value.shape[0], -1)
+                    for k in range(flat.shape[1]):
+                        cols.append(Column(f"{name}_{key}_{k}", unit, f"{description} [{k}] at clearance joint {name!r}", flat[:, k]))
             cols.append(
-                Column(f"{name}_mode", "", f"contact mode at clearance joint {name!r} ({legend})", labels.astype(float))
+                Column(f"{name}_mode", "", f"contact mode at clearance joint {name!r} ({legend})", modes[name].astype(float))
             )
     cols += [
         Column("constraint_violation", "m", "max |Phi| over constraint rows (m or rad)", np.asarray(traj.constraint_violation)),
@@ -183,6 +187,12 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     if dupes:
         raise ValueError(f"output column names collide: {dupes}; rename the joints or bodies.")
     return cols
+
+
+def clearance_joint_names(traj) -> list[str]:
+    """Names of the trajectory's clearance joints in the mechanism's order (O, A, B for the slider–crank)."""
+    order = [j.name for j in getattr(traj.mechanism, "clearance_joints", ())]
+    return [n for n in order if n in traj.clearance] + sorted(n for n in traj.clearance if n not in order)
 
 
 def column_map(traj) -> dict[str, Column]:

@@ -95,6 +95,12 @@ def _solver_help() -> str:
     )
 
 
+def _contact_names() -> str:
+    from .contact import CONTACT_LAWS
+
+    return ", ".join(CONTACT_LAWS)
+
+
 DEFAULT_SOLVER = "auto"
 """Default: ``auto`` picks ``fast`` (explicit Tsit5) for ideal joints and frictionless or
 Coulomb-type contact, ``imex`` (KenCarp5, LuGre's stiff state implicit) with LuGre friction
@@ -134,7 +140,7 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("clearance", "pin_length", float, 0.01, "m", "pin length h (cylindrical and foundation laws)", None, "positive"),
     Setting("clearance", "young_modulus", float, 207e9, "Pa", "Young's modulus E of bearing and journal", None, "positive"),
     Setting("clearance", "poisson_ratio", float, 0.3, "", "Poisson's ratio of bearing and journal, in (0, 0.5)", None, "positive"),
-    Setting("clearance", "contact", str, "hybrid", "", "normal contact law (kebab case: hybrid, lankarani-nikravesh, hertz, ...)", "--contact"),
+    Setting("clearance", "contact", str, "hybrid", "", f"normal contact law: {_contact_names()}", "--contact"),
     Setting("clearance", "restitution", float, 0.9, "", "restitution coefficient c_e in (0, 1] (damped laws)", "--restitution", "positive"),
     Setting("clearance", "gauss_points", int, 3, "", "hybrid law: Gauss points per element m1", None, "positive"),
     Setting("clearance", "elements", int, 10, "", "hybrid law: elements over the contact arc m2", None, "positive"),
@@ -196,6 +202,8 @@ def _fmt_default(s: Setting) -> str:
         for name, preset in PRESETS.items():
             by_value.setdefault(f"{getattr(preset, s.key):g}", []).append(name)
         return "preset's: " + ", ".join(f"{'/'.join(names)} {value}" for value, names in by_value.items())
+    if s.default is None:
+        return "law's default"
     if isinstance(s.default, bool):
         return "true" if s.default else "false"
     return f"{s.default:g}" if isinstance(s.default, float) else str(s.default)
@@ -260,6 +268,10 @@ example config:
   [mechanism]
   rpm = 3000
   gravity = true
+  [clearance]
+  joints = "B"
+  contact = "lankarani-nikravesh"
+  friction = "modified-coulomb"
   [simulation]
   revolutions = 4
   [solver]
@@ -268,9 +280,14 @@ example config:
 
 outputs in --out DIR: results.csv and results.npz (t [s], crank_angle [deg, unwrapped from the
 initial angle], slider_x [m], slider_v [m/s], slider_a [m/s^2], crank_torque [N m], <joint>_Fx,
-<joint>_Fy [N] for joints O, A, B, slider_guide_moment [N m], slider_guide_normal [N],
-constraint_violation [m], velocity_violation [m/s]), run.json (configuration, versions, solver
-statistics, compile_time_s, run_time_s) and PNG plots.
+<joint>_Fy [N] for the ideal joints among O, A, B, slider_guide_moment [N m],
+slider_guide_normal [N], per clearance joint J: J_ecc_x, J_ecc_y [m], J_penetration [m],
+J_penetration_rate [m/s], J_normal_force, J_friction_force, J_tangential_force [N],
+J_slip_velocity, J_impact_velocity [m/s], J_friction_state [m] (LuGre only), J_mode (0 free,
+1 impact, 2 continuous contact); constraint_violation [m], velocity_violation [m/s]), run.json
+(configuration, versions, solver statistics, compile_time_s, run_time_s, clearance_joints,
+contact_mode_shares) and PNG plots (with clearance joints also normal_force.png and
+orbit_<J>.png, and the other plots show the ideal-joint run dashed grey behind).
 
 exit codes: 0 success, 1 simulation failed, 2 bad input.
 """
@@ -292,10 +309,12 @@ def build_parser() -> argparse.ArgumentParser:
         allow_abbrev=False,
         help="simulate the benchmark slider-crank and write results and plots",
         description=(
-            "Simulate the benchmark slider-crank (crank 0.05 m, rod 0.12 m, ideal revolute joints O, A, B,\n"
+            "Simulate the benchmark slider-crank (crank 0.05 m, rod 0.12 m, revolute joints O, A, B,\n"
             "slider on a guide) driven at constant crank speed, and write results.csv, results.npz,\n"
-            "run.json and PNG plots into --out DIR. Defaults: 5000 rpm, 2 revolutions, 360 points per\n"
-            "revolution, no gravity, solver preset 'fast' (explicit Tsit5: ideal joints are not stiff)."
+            "run.json and PNG plots into --out DIR. Defaults: clearance joints O, A, B (c = 0.5 mm,\n"
+            "hybrid contact law, LuGre friction), 5000 rpm, 2 revolutions, 360 points per revolution,\n"
+            "no gravity, solver 'auto' (imex, KenCarp5, with LuGre friction; fast, Tsit5, otherwise).\n"
+            "'--clearance-joints none' gives ideal joints."
         ),
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -305,12 +324,12 @@ def build_parser() -> argparse.ArgumentParser:
         if s.flag is None:
             continue
         unit = f" [{s.unit}]" if s.unit else ""
-        default = f" (default: {_fmt_default(s)})"
+        default = "" if s.default is None and s.section != "solver" else f" (default: {_fmt_default(s)})"
         if s.kind is bool or s.kind == "gravity":
             text = s.flag_help or s.help
             run.add_argument(s.flag, dest=s.dest, action=argparse.BooleanOptionalAction, default=None, help=f"{text}{default}")
         elif s.kind is str:
-            metavar = "NAME" if s.key == "method" else "DIR"
+            metavar = {"directory": "DIR", "joints": "LIST", "contact": "LAW", "friction": "LAW"}.get(s.key, "NAME")
             run.add_argument(s.flag, dest=s.dest, default=None, metavar=metavar, help=f"{s.help}{default}")
         else:
             metavar = "N" if s.kind is int else "X"
@@ -535,9 +554,11 @@ def _timed_simulate(mechanism, t1: float, num_points: int, solver, progress: boo
 
 def _mode_shares(traj, config: dict) -> dict:
     """Time share of each combination of contact modes over the saved instants (MODEL.md §7)."""
+    from ._outputs import clearance_joint_names
     from .analysis import combination_shares, trajectory_modes
 
-    return combination_shares(trajectory_modes(traj, config["clearance"]["continuous_fraction"]))
+    modes = trajectory_modes(traj, config["clearance"]["continuous_fraction"])
+    return combination_shares({name: modes[name] for name in clearance_joint_names(traj)})  # O, A, B order
 
 
 def _one_line(error: BaseException) -> str:
@@ -568,7 +589,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     cl = config["clearance"]
     joints_text = (
         f"clearance joints {','.join(names)} (c = {cl['clearance'] * 1e3:g} mm, {cl['contact']} contact, "
-        f"{cl['friction']} friction)"
+        f"{'no' if cl['friction'] == 'none' else cl['friction']} friction)"
         if names
         else "ideal joints"
     )

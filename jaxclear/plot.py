@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MultipleLocator
 
-from ._outputs import Column, column_map
+from ._outputs import Column, clearance_joint_names, column_map
 
 QUANTITY_LABELS = {
     "slider_x": "Slider position",
@@ -215,14 +215,14 @@ def plot_orbit(traj, joint: str, *, ax=None) -> Figure:
     ax.set_ylabel("Eccentricity y (mm)")
     ax.set_title(f"Journal-centre orbit at clearance joint {joint} (c = {c * 1e3:g} mm)")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper right", fontsize="small")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small")  # beside the square axes, off the orbit
     return fig
 
 
 def plot_contact_forces(traj, *, ax=None) -> Figure:
     """Normal contact force of every clearance joint against crank angle."""
     fig, ax = _new_axes(ax)
-    for k, name in enumerate(traj.clearance):
+    for k, name in enumerate(clearance_joint_names(traj)):
         angle, force = _curve(traj, f"{name}_normal_force", "angle")
         ax.plot(angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
     ax.set_xlabel("Crank angle (°)")
@@ -276,6 +276,6 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
         written.append(_save(fig, out_dir, filename, dpi))
     if traj.clearance and traj.mechanism.driver is not None:
         written.append(_save(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
-        for name in traj.clearance:
+        for name in clearance_joint_names(traj):
             written.append(_save(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))
     return written

@@ -126,7 +126,7 @@ def test_contract_stiff_part_is_part_of_state_derivative(law_and_steady):
     for v, z in ((0.0, 1e-6), (0.02, -3e-7), (-1.5, 2e-6)):
         v, state = jnp.asarray(v), jnp.full((law.num_states,), z)
         full = law.state_derivative(v, FN, state, SMOOTHING)
-        stiff = law.stiff_state_derivative(v, FN, state, SMOOTHING)
+        stiff = law.stiff_state_derivative(v, state, SMOOTHING)
         assert stiff.shape == full.shape == (law.num_states,), name
         explicit = np.asarray(full - stiff)
         np.testing.assert_allclose(explicit, float(v) * (law.num_states > 0), atol=1e-15)

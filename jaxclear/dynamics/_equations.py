@@ -15,13 +15,19 @@ from jaxtyping import Array, Float
 from ._constraints import constraint_jacobian, constraints, gamma
 
 
-def generalized_forces(mechanism, t, q, qd, states: dict) -> Float[Array, " n"]:
-    """Q: gravity plus every force element (applied forces, springs, clearance contacts)."""
+def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = None) -> Float[Array, " n"]:
+    """Q: gravity plus every force element (applied forces, springs, clearance contacts).
+
+    If ``caches`` is a dict, each element's cache (for ``state_derivative_cached``) is stored in it.
+    """
     m = jnp.stack([b.mass for b in mechanism.bodies])
     grav = jnp.concatenate([m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1)
     total = grav.reshape(-1).astype(q.dtype)
     for element in mechanism.force_elements:
-        total = total + element.generalized_force(mechanism.index, q, qd, t, states[element.name])
+        force, cache = element.force_and_cache(mechanism.index, q, qd, t, states[element.name])
+        total = total + force
+        if caches is not None:
+            caches[element.name] = cache
     return total
 
 
@@ -54,10 +60,12 @@ def evaluate(mechanism, t, y):
     Keys: ``q, qd, qdd, multipliers, phi, phi_dot, forces, states, state_rates``.
     """
     q, qd, states = mechanism.split_state(y)
-    forces = generalized_forces(mechanism, t, q, qd, states)
+    caches = {}
+    forces = generalized_forces(mechanism, t, q, qd, states, caches)
     qdd, lam, phi, phi_dot = solve_accelerations(mechanism, t, q, qd, forces)
     rates = {
-        e.name: e.state_derivative(mechanism.index, q, qd, qdd, t, states[e.name]) for e in mechanism.force_elements
+        e.name: e.state_derivative_cached(caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name])
+        for e in mechanism.force_elements
     }
     return dict(
         q=q, qd=qd, qdd=qdd, multipliers=lam, phi=phi, phi_dot=phi_dot, forces=forces, states=states, state_rates=rates

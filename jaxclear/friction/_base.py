@@ -48,13 +48,14 @@ class AbstractFrictionLaw(eqx.Module):
     def stiff_state_derivative(
         self,
         slip_velocity: Float[Array, ""],
-        normal_force: Float[Array, ""],
         state: Float[Array, " num_states"],
         smoothing: Smoothing,
     ) -> Float[Array, " num_states"]:
         """The stiff part of ``state_derivative`` (for IMEX solvers: treated implicitly).
 
-        Must be a part of ``state_derivative``; the rest is integrated explicitly. Default: none.
+        Must be a part of ``state_derivative`` and must not depend on the normal force (the
+        implicit solve differentiates it and skips the contact law); the rest is integrated
+        explicitly. Default: none.
         """
         return jnp.zeros((self.num_states,))
 

@@ -86,7 +86,6 @@ class LuGre(AbstractFrictionLaw):
     def stiff_state_derivative(
         self,
         slip_velocity: Float[Array, ""],
-        normal_force: Float[Array, ""],
         state: Float[Array, " 1"],
         smoothing: Smoothing,
     ) -> Float[Array, " 1"]:

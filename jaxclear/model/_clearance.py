@@ -192,15 +192,22 @@ class ClearanceJoint(AbstractForceElement):
         return k, dict(normal_force=normal, friction_force=friction, tangential_force=tangential, force_on_journal=on_journal)
 
     def generalized_force(self, index, q, qd, t, state):
+        return self.force_and_cache(index, q, qd, t, state)[0]
+
+    def force_and_cache(self, index, q, qd, t, state):
         k, f = self.contact_forces(index, q, qd, state)
         ib, ij = index(self.bearing_body), index(self.journal_body)
         fj = f["force_on_journal"]
-        return point_force_to_generalized(q, ij, k["journal_contact_point"], fj) + point_force_to_generalized(
+        force = point_force_to_generalized(q, ij, k["journal_contact_point"], fj) + point_force_to_generalized(
             q, ib, k["bearing_contact_point"], -fj
         )
+        return force, (k, f)
 
     def state_derivative(self, index, q, qd, qdd, t, state):
-        k, f = self.contact_forces(index, q, qd, state)
+        return self.state_derivative_cached(self.contact_forces(index, q, qd, state), index, q, qd, qdd, t, state)
+
+    def state_derivative_cached(self, cache, index, q, qd, qdd, t, state):
+        k, f = cache
         ib, ij = index(self.bearing_body), index(self.journal_body)
         accel = _point_acceleration(q, qd, qdd, ij, self.journal_point) - _point_acceleration(
             q, qd, qdd, ib, self.bearing_point
@@ -219,10 +226,14 @@ class ClearanceJoint(AbstractForceElement):
         return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
     def stiff_state_derivative(self, index, q, qd, t, state):
-        """Stiff parts: memory relaxation k_m term and the friction law's stiff part (LuGre z)."""
-        k, f = self.contact_forces(index, q, qd, state)
+        """Stiff parts: memory relaxation k_m term and the friction law's stiff part (LuGre z).
+
+        Kinematics only (no contact law): the implicit solve differentiates this function, so it
+        is kept cheap; friction laws' stiff parts must not depend on the normal force.
+        """
+        k = self.kinematics(index, q, qd)
         m_dot = memory_relaxation(state[0], k["penetration"], k["penetration_rate"], self.smoothing)
-        z_dot = self.friction_law.stiff_state_derivative(k["slip_velocity"], f["normal_force"], state[1:], self.smoothing)
+        z_dot = self.friction_law.stiff_state_derivative(k["slip_velocity"], state[1:], self.smoothing)
         return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
     def outputs(self, index, q, qd, qdd, t, state) -> dict:

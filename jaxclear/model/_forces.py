@@ -49,6 +49,17 @@ class AbstractForceElement(eqx.Module):
         """Time derivative of the internal state; ``qdd`` is this evaluation's acceleration."""
         return jnp.zeros((self.num_states,))
 
+    def force_and_cache(self, index: Index, q, qd, t, state):
+        """(Q contribution, cache) in one pass; the cache goes to ``state_derivative_cached``.
+
+        Override both to share work between forces and state rates (default: no sharing).
+        """
+        return self.generalized_force(index, q, qd, t, state), None
+
+    def state_derivative_cached(self, cache, index: Index, q, qd, qdd, t, state) -> Float[Array, " s"]:
+        """``state_derivative`` reusing the cache of ``force_and_cache``."""
+        return self.state_derivative(index, q, qd, qdd, t, state)
+
     def stiff_state_derivative(self, index: Index, q, qd, t, state) -> Float[Array, " s"]:
         """The stiff part of ``state_derivative``, integrated implicitly by IMEX solvers (KenCarp).
 
