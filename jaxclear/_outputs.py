@@ -83,8 +83,9 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     ``slider``: ``slider_x``, ``slider_v``, ``slider_a``; for every ideal revolute joint the force
     that its body_j exerts on its body_i, ``<joint>_Fx``, ``<joint>_Fy`` (N); for every ideal
     translational joint the moment and normal force the guide exerts on the slider,
-    ``<joint>_moment`` (N m) and ``<joint>_normal`` (N); per clearance joint, in the mechanism's order,
-    its outputs as ``<joint>_<output>`` (``CLEARANCE_OUTPUTS`` order) and its contact mode ``<joint>_mode``; then ``constraint_violation`` and ``velocity_violation``.
+    ``<joint>_moment`` (N m) and ``<joint>_normal`` (N); per clearance joint, in the mechanism's
+    order, its outputs as ``<joint>_<output>`` (``CLEARANCE_OUTPUTS`` order) and its contact mode
+    ``<joint>_mode``; then ``constraint_violation`` and ``velocity_violation``.
 
     Raises:
         ValueError: ``traj`` is batched.

@@ -1,4 +1,10 @@
-"""The ``jaxclear run`` command: outputs, config-file layering and every bad-input path."""
+"""The ``jaxclear run`` command: outputs, config-file layering and every bad-input path.
+
+The default run (three clearance joints, hybrid contact, LuGre friction, KenCarp5) compiles for
+about half a minute, so it is not simulated here: its settings are checked without simulating, the
+ideal-joint outputs come from ``--clearance-joints none`` runs, and the clearance outputs from one
+cheap clearance run (joint B only, Lankarani-Nikravesh contact, no friction, explicit Tsit5).
+"""
 
 import csv
 import json
@@ -11,11 +17,18 @@ import pytest
 import jaxclear
 import jaxclear._simulate
 from jaxclear import cli
+from jaxclear.contact import CONTACT_LAWS, Hybrid
+from jaxclear.friction import FRICTION_LAWS, LuGre
 
 # Short horizon, shared by every simulating test here and in test_plot.py: the same number of output
-# points and solver settings compile once per process.
-SHORT = ["--revolutions", "0.25", "--points-per-revolution", "36", "--no-progress", "--quiet"]
-NUM_POINTS = 10  # 0.25 rev x 36 points/rev = 9 intervals
+# points and solver settings compile once per process (the clearance run's ideal-joint reference
+# curve reuses the compilation of the ideal runs).
+SHORT = ["--revolutions", "0.25", "--points-per-revolution", "360", "--no-progress", "--quiet"]
+NUM_POINTS = 91  # 0.25 rev x 360 points/rev = 90 intervals
+IDEAL = ["--clearance-joints", "none"]
+CHEAP_CLEARANCE = ["--clearance-joints", "B", "--contact", "lankarani-nikravesh", "--friction", "none"]
+CLEARANCE = 5e-4  # m, the default radial clearance
+MAX_PENETRATION = 150e-6  # m: generous bound on the penetration of a steel pin at 5000 rpm
 CRANK, ROD = 0.05, 0.12  # m, slider_crank defaults
 POSITION_TOLERANCE = 1e-6  # m: the 'fast' preset (rtol 1e-6) and Baumgarte drift stay well below
 EXPECTED_COLUMNS = [
@@ -36,6 +49,19 @@ EXPECTED_COLUMNS = [
     "constraint_violation",
     "velocity_violation",
 ]
+CLEARANCE_OUTPUTS = [  # per clearance joint, in file order; friction_state only with LuGre
+    "ecc_x",
+    "ecc_y",
+    "penetration",
+    "penetration_rate",
+    "normal_force",
+    "friction_force",
+    "tangential_force",
+    "slip_velocity",
+    "impact_velocity",
+    "mode",
+]
+STANDARD_PNGS = ["slider_position.png", "slider_velocity.png", "slider_acceleration.png", "crank_torque.png", "constraint_violation.png"]
 
 
 def closed_form_slider_x(angle_rad):
@@ -44,9 +70,16 @@ def closed_form_slider_x(angle_rad):
 
 
 @pytest.fixture(scope="module")
-def default_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("run")
-    assert cli.main(["run", *SHORT, "--out", str(out)]) == 0
+def ideal_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ideal")
+    assert cli.main(["run", *IDEAL, *SHORT, "--out", str(out)]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def clearance_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("clearance")
+    assert cli.main(["run", *CHEAP_CLEARANCE, *SHORT, "--out", str(out)]) == 0
     return out
 
 
@@ -57,14 +90,16 @@ def read_csv(path):
     return header, {name: body[:, k] for k, name in enumerate(header)}
 
 
-def test_run_writes_files(default_run):
-    for name in ("results.csv", "results.npz", "run.json", "slider_acceleration.png", "constraint_violation.png"):
-        assert (default_run / name).stat().st_size > 0, name
-    assert not list(default_run.glob(".*tmp*")), "temporary files left behind"
+def test_run_writes_files(ideal_run):
+    for name in ("results.csv", "results.npz", "run.json", *STANDARD_PNGS):
+        assert (ideal_run / name).stat().st_size > 0, name
+    assert not (ideal_run / "normal_force.png").exists()
+    assert not list(ideal_run.glob("orbit_*.png"))
+    assert not list(ideal_run.glob(".*tmp*")), "temporary files left behind"
 
 
-def test_csv_columns_and_values(default_run):
-    header, cols = read_csv(default_run / "results.csv")
+def test_csv_columns_and_values(ideal_run):
+    header, cols = read_csv(ideal_run / "results.csv")
     assert header == EXPECTED_COLUMNS
     assert cols["t"].shape == (NUM_POINTS,)
     rpm = 5000.0
@@ -80,20 +115,21 @@ def test_csv_columns_and_values(default_run):
     assert np.all(cols["constraint_violation"] < POSITION_TOLERANCE)
 
 
-def test_npz_matches_csv(default_run):
-    header, cols = read_csv(default_run / "results.csv")
-    with np.load(default_run / "results.npz") as npz:
+def test_npz_matches_csv(ideal_run):
+    header, cols = read_csv(ideal_run / "results.csv")
+    with np.load(ideal_run / "results.npz") as npz:
         assert sorted(npz.files) == sorted(header)
         for name in header:
             np.testing.assert_allclose(npz[name], cols[name], rtol=1e-11, atol=1e-300)
 
 
-def test_run_json(default_run):
-    info = json.loads((default_run / "run.json").read_text())
+def test_run_json(ideal_run):
+    info = json.loads((ideal_run / "run.json").read_text())
     assert info["status"] == "complete"
     assert info["config"]["mechanism"]["rpm"] == 5000.0
-    assert info["config"]["solver"]["method"] == "fast"
+    assert info["config"]["solver"]["method"] == "auto"  # auto: 'fast' (Tsit5) without LuGre
     assert info["solver"]["method"] == "tsit5"
+    assert info["clearance_joints"] == [] and info["contact_mode_shares"] == {}
     assert info["stats"]["succeeded"] is True and info["stats"]["num_steps"] > 0
     assert info["compile_time_s"] > 0 and info["run_time_s"] > 0
     for package in ("jaxclear", "jax", "jaxlib", "diffrax", "equinox", "numpy"):
@@ -102,19 +138,86 @@ def test_run_json(default_run):
     assert set(info["files"]) >= {"results.csv", "results.npz", "run.json", "slider_position.png"}
 
 
+def test_defaults_are_three_clearance_joints():
+    """The default run, checked without simulating it: O, A, B with clearance, hybrid + LuGre, KenCarp5."""
+    config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run"]))
+    assert sources[("clearance", "joints")] == "default"
+    assert cli._solver(config, sources).method == "kencarp5"  # auto -> imex with LuGre
+    mechanism = cli._mechanism(config)
+    joints = mechanism.clearance_joints
+    assert [j.name for j in joints] == ["O", "A", "B"]
+    assert not {"O", "A", "B"} & {j.name for j in mechanism.joints}
+    for joint in joints:
+        assert isinstance(joint.contact_law, Hybrid)
+        assert isinstance(joint.friction_law, LuGre)
+        assert float(joint.geometry.clearance) == pytest.approx(CLEARANCE)
+    assert cli._grid(config) == (pytest.approx(2 * 60 / 5000), 721)
+    # Without LuGre, auto picks the explicit 'fast' preset.
+    config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run", "--friction", "coulomb"]))
+    assert cli._solver(config, sources).method == "tsit5"
+
+
+def test_clearance_columns(clearance_run):
+    header, _ = read_csv(clearance_run / "results.csv")
+    with np.load(clearance_run / "results.npz") as npz:
+        cols = {name: npz[name] for name in npz.files}
+    assert sorted(cols) == sorted(header)
+    ideal = [c for c in EXPECTED_COLUMNS if c not in ("B_Fx", "B_Fy")]  # B is no longer an ideal joint
+    tail = ["constraint_violation", "velocity_violation"]
+    assert header == ideal[: -len(tail)] + [f"B_{k}" for k in CLEARANCE_OUTPUTS] + tail
+    assert cols["t"].shape == (NUM_POINTS,)
+    eccentricity = np.hypot(cols["B_ecc_x"], cols["B_ecc_y"])
+    assert np.all(eccentricity <= CLEARANCE + MAX_PENETRATION)
+    penetration = cols["B_penetration"]
+    np.testing.assert_allclose(penetration, eccentricity - CLEARANCE, atol=1e-12)
+    force, mode = cols["B_normal_force"], cols["B_mode"]
+    assert np.all(force >= 0)
+    assert np.all(force[penetration < 0] == 0)
+    assert force.max() > 100.0, "the journal never hit the bearing"
+    assert set(np.unique(mode)) <= {0.0, 1.0, 2.0}
+    assert np.all(mode[penetration <= 0] == 0)
+    assert np.all(mode[penetration > 0] > 0)
+    assert np.all(cols["B_friction_force"] == 0)  # --friction none
+
+
+def test_clearance_run_json_and_plots(clearance_run):
+    info = json.loads((clearance_run / "run.json").read_text())
+    assert info["clearance_joints"] == ["B"]
+    assert info["config"]["clearance"]["contact"] == "lankarani-nikravesh"
+    assert info["sources"]["clearance.friction"] == "--friction"
+    assert info["solver"]["method"] == "tsit5"
+    shares = info["contact_mode_shares"]
+    assert shares and all(key.startswith("B:") for key in shares), shares
+    assert sum(shares.values()) == pytest.approx(1.0)
+    assert info["columns"]["B_normal_force"]["unit"] == "N"
+    assert info["columns"]["B_ecc_x"]["unit"] == "m"
+    pngs = [*STANDARD_PNGS, "normal_force.png", "orbit_B.png"]
+    for name in pngs:
+        assert (clearance_run / name).stat().st_size > 5_000, name
+    assert set(info["files"]) >= set(pngs)
+    assert not list(clearance_run.glob(".*tmp*")), "temporary files left behind"
+
+
 def test_config_file_and_override(tmp_path):
     config = tmp_path / "c.toml"
     config.write_text(
-        '[mechanism]\nrpm = 3000\ninitial_angle = 0.5\n[simulation]\nrevolutions = 1\n[output]\nplots = false\n'
+        "[mechanism]\nrpm = 3000\ninitial_angle = 0.5\n"
+        '[clearance]\njoints = "A"\ncontact = "hertz"\n'
+        "[simulation]\nrevolutions = 1\n[output]\nplots = false\n"
     )
     out = tmp_path / "out"
-    # Options win over the file: 4000 rpm and a quarter revolution.
-    assert cli.main(["run", str(config), *SHORT, "--rpm", "4000", "--out", str(out)]) == 0
+    # Options win over the file: 4000 rpm, a quarter revolution and ideal joints.
+    assert cli.main(["run", str(config), *SHORT, *IDEAL, "--rpm", "4000", "--out", str(out)]) == 0
     info = json.loads((out / "run.json").read_text())
     assert info["config"]["mechanism"]["rpm"] == 4000.0
     assert info["config"]["mechanism"]["initial_angle"] == 0.5
     assert info["sources"]["mechanism.rpm"] == "--rpm"
     assert info["config"]["simulation"]["revolutions"] == 0.25
+    assert info["config"]["clearance"]["joints"] == "none"
+    assert info["sources"]["clearance.joints"] == "--clearance-joints"
+    assert info["config"]["clearance"]["contact"] == "hertz"
+    assert info["sources"]["clearance.contact"] == f"[clearance] contact in {str(config)!r}"
+    assert info["clearance_joints"] == []
     assert not (out / "slider_position.png").exists()
     _, cols = read_csv(out / "results.csv")
     assert cols["t"][-1] == pytest.approx(0.25 * 60 / 4000)
@@ -133,6 +236,13 @@ def test_help_lists_options_and_keys(capsys):
             assert setting.flag in text, setting.flag
     for flag in ("--no-progress", "--quiet", "--no-gravity", "rev/min"):
         assert flag in text
+    # The defaults: three clearance joints, hybrid contact, LuGre friction; every law name listed.
+    assert "(default: O,A,B)" in text
+    assert "(default: hybrid)" in text
+    assert "(default: lugre)" in text
+    flat = " ".join(text.replace("-\n", "-").split())  # argparse wraps long lines, also at hyphens
+    for name in (*CONTACT_LAWS, *FRICTION_LAWS):
+        assert name in flat, name
 
 
 def test_top_level_help(capsys):
@@ -161,6 +271,11 @@ BAD_CONFIGS = {
     "negative in file": ("[mechanism]\nrod_mass = -1.0\n", "must be positive"),
     "unknown solver": ('[solver]\nmethod = "euler"\n', "solver 'euler' is unknown"),
     "rod too short": ("[mechanism]\nrod_length = 0.04\n", "rod_length > crank_length"),
+    "LuGre key with Coulomb": ('[clearance]\nfriction = "coulomb"\nstatic_friction = 0.2\n', "applies to the lugre friction law only"),
+    "unknown clearance key": ("[clearance]\nradius = 0.01\n", "unknown key 'radius' in [clearance]"),
+    "clearance joints not a string": ('[clearance]\njoints = ["B"]\n', "must be a string"),
+    "unknown contact law in file": ('[clearance]\ncontact = "hertzian"\n', "is unknown; choose one of"),
+    "non-integer elements": ("[clearance]\nelements = 2.5\n", "must be an integer"),
 }
 BAD_OPTIONS = {
     "unknown option": (["--bogus"], "unrecognized arguments: --bogus"),
@@ -174,6 +289,18 @@ BAD_OPTIONS = {
     "zero max steps": (["--max-steps", "0"], "must be positive"),
     "unknown solver": (["--solver", "euler"], "solver 'euler' is unknown"),
     "missing config": (["does-not-exist.toml"], "not found"),
+    "unknown clearance joint": (["--clearance-joints", "C"], "--clearance-joints must list distinct joints among O, A, B"),
+    "repeated clearance joint": (["--clearance-joints", "B,B"], "distinct joints"),
+    "unknown contact law": (["--contact", "hertzian"], "--contact 'hertzian' is unknown; choose one of hertz, lankarani-nikravesh"),
+    "unknown friction law": (["--friction", "stribeck"], "choose one of none, coulomb, modified-coulomb, lugre"),
+    "zero clearance": (["--clearance", "0"], "--clearance must be positive"),
+    "negative clearance": (["--clearance", "-0.0005"], "--clearance must be positive"),
+    "negative clearance, exponent": (["--clearance=-5e-4"], "--clearance must be positive"),
+    "clearance above bearing radius": (["--clearance", "0.02"], "must be smaller than bearing_radius"),
+    "restitution above one": (["--restitution", "1.5"], "restitution must be in (0, 1], got 1.5"),
+    "zero restitution": (["--restitution", "0"], "--restitution must be positive"),
+    "negative friction coefficient": (["--friction-coefficient", "-0.1"], "must be zero or positive"),
+    "friction coefficient without friction": (["--friction", "none", "--friction-coefficient", "0.1"], "does not apply"),
 }
 
 

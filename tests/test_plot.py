@@ -1,22 +1,44 @@
-"""Plots of a Trajectory: files written, non-empty PNGs, reference overlay."""
+"""Plots of a Trajectory: files written, non-empty PNGs, reference overlay, clearance-joint plots."""
 
+import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
 import jaxclear
 from jaxclear import plot
+from jaxclear.contact import LankaraniNikravesh
+from jaxclear.friction import NoFriction
 
-# Same horizon and number of output points as tests/test_cli.py: one compilation for both files.
+# Same horizon, number of output points and solver as tests/test_cli.py, and the same mechanisms as
+# its ideal and cheap clearance runs: no compilation of its own when both files run in one process.
 RPM = 5000.0
 REVOLUTIONS = 0.25
-NUM_POINTS = 10
+NUM_POINTS = 91
+CLEARANCE = 5e-4  # m
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _simulate(mechanism):
+    return jaxclear.simulate(mechanism, REVOLUTIONS * 60 / RPM, num_points=NUM_POINTS, solver="fast")
 
 
 @pytest.fixture(scope="module")
 def traj():
-    mechanism = jaxclear.mechanisms.slider_crank(rpm=RPM)
-    return jaxclear.simulate(mechanism, REVOLUTIONS * 60 / RPM, num_points=NUM_POINTS, solver="fast")
+    return _simulate(jaxclear.mechanisms.slider_crank(rpm=RPM))
+
+
+@pytest.fixture(scope="module")
+def clearance_traj():
+    mechanism = jaxclear.mechanisms.slider_crank(
+        rpm=RPM, clearance_joints="B", clearance=CLEARANCE, contact_law=LankaraniNikravesh(), friction_law=NoFriction()
+    )
+    return _simulate(mechanism)
+
+
+def _check_png(path):
+    data = path.read_bytes()
+    assert data.startswith(PNG_SIGNATURE), path
+    assert len(data) > 5_000, path  # axes, labels and a curve, not a blank canvas
 
 
 def test_save_standard_plots(traj, tmp_path):
@@ -24,9 +46,16 @@ def test_save_standard_plots(traj, tmp_path):
     names = sorted(p.name for p in paths)
     assert names == sorted(name for name, _, _ in plot.STANDARD_PLOTS)
     for path in paths:
-        data = path.read_bytes()
-        assert data.startswith(PNG_SIGNATURE), path
-        assert len(data) > 5_000, path  # axes, labels and a curve, not a blank canvas
+        _check_png(path)
+    assert not list((tmp_path / "plots").glob(".*")), "temporary files left behind"
+
+
+def test_save_standard_plots_with_clearance(clearance_traj, traj, tmp_path):
+    paths = plot.save_standard_plots(clearance_traj, tmp_path / "plots", reference=traj)
+    names = sorted(p.name for p in paths)
+    assert names == sorted([name for name, _, _ in plot.STANDARD_PLOTS] + ["normal_force.png", "orbit_B.png"])
+    for path in paths:
+        _check_png(path)
     assert not list((tmp_path / "plots").glob(".*")), "temporary files left behind"
 
 
@@ -47,8 +76,42 @@ def test_reference_is_drawn_behind(traj):
     assert len(lines) == 2
     reference, main = lines
     assert reference.get_zorder() < main.get_zorder()
+    assert reference.get_linestyle() == "--"
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == ["ideal joints", "clearance"]
+
+
+def test_ideal_reference_behind_clearance_run(clearance_traj, traj):
+    """As ``jaxclear run`` draws it: the ideal-joint curve dashed grey behind the clearance run."""
+    fig = plot.plot_vs_crank_angle(clearance_traj, "slider_a", reference=traj)
+    reference, main = fig.axes[0].get_lines()
+    assert reference.get_linestyle() == "--" and reference.get_zorder() < main.get_zorder()
+    np.testing.assert_allclose(reference.get_ydata(), np.asarray(traj.accelerations("slider"))[:, 0])
+    np.testing.assert_allclose(main.get_ydata(), np.asarray(clearance_traj.accelerations("slider"))[:, 0])
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["ideal joints", "this run"]
+
+
+def test_orbit_plot(clearance_traj):
+    fig = plot.plot_orbit(clearance_traj, "B")
+    ax = fig.axes[0]
+    circle, orbit, contact = ax.get_lines()
+    radius = np.hypot(circle.get_xdata(), circle.get_ydata())
+    np.testing.assert_allclose(radius, CLEARANCE * 1e3)  # mm
+    out = clearance_traj.clearance["B"]
+    np.testing.assert_allclose(orbit.get_xdata(), np.asarray(out["ecc_x"]) * 1e3)
+    assert len(contact.get_xdata()) == int(np.sum(np.asarray(out["penetration"]) > 0)) > 0
+    assert ax.get_xlabel() == "Eccentricity x (mm)"
+    assert "c = 0.5 mm" in ax.get_title()
+
+
+def test_contact_force_plot(clearance_traj):
+    fig = plot.plot_contact_forces(clearance_traj)
+    ax = fig.axes[0]
+    (line,) = ax.get_lines()
+    np.testing.assert_allclose(line.get_ydata(), np.asarray(clearance_traj.clearance["B"]["normal_force"]) / 1e3)  # kN
+    assert "kN" in ax.get_ylabel()
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["joint B"]
 
 
 def test_unknown_quantity(traj):

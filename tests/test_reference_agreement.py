@@ -23,6 +23,7 @@ HORIZON_REVOLUTIONS = 1.0 / 12.0  # 1 ms: four contact onsets at joint B
 POINTS_PER_REVOLUTION = 3600
 WIDTHS = (1e-7, 1e-8, 1e-9)  # m: penetration and memory widths
 SHARP_RTOL = 1e-11
+BAUMGARTE = float(slider_crank().baumgarte_alpha)  # the same stabilisation in both implementations
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +36,8 @@ def sharp():
         mode="sharp",
         rtol=SHARP_RTOL,
         atol=1e-14,
+        alpha=BAUMGARTE,
+        beta=BAUMGARTE,
     )
 
 

@@ -41,9 +41,9 @@ class AbstractJoint(eqx.Module):
 class RevoluteJoint(AbstractJoint):
     """Ideal revolute joint: point ``point_i`` on ``body_i`` coincides with ``point_j`` on ``body_j``.
 
-    Φ = r_i^P − r_j^P (2 equations). Its multipliers λ are the force that body j exerts on body i
-    at the joint with the sign convention of MODEL.md §1 (constraint force on q is −Φ_qᵀλ, so body
-    i receives −λ and body j receives +λ).
+    Φ = r_i^P − r_j^P (2 equations). Its multipliers λ are minus the force that body j exerts on
+    body i at the joint (constraint force on q is −Φ_qᵀλ, MODEL.md §1, so body i receives −λ and
+    body j receives +λ); ``Trajectory.joint_force`` returns −λ.
 
     Attributes:
         name: label used in outputs (static).

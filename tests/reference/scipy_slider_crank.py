@@ -9,7 +9,25 @@ complement (M is diagonal).  Two contact modes:
 * ``"smooth"``: MODEL.md §5 -- C1 ramps for the penetration and the damping factor, and an
   impact-velocity memory state m per joint, m' = w(delta) [d(delta')/dt + k_m (delta' - m)].
 
-State y = (q[9], qd[9], m[n_clearance] (smooth mode only), W (drive work, optional)).
+State y = (q[9], qd[9], m[n_clearance] (smooth mode only), z[n_clearance] (LuGre friction only),
+W (drive work, optional)).
+
+Friction (``friction=``, MODEL.md §4), the formulas and smoothings re-implemented in NumPy:
+* ``("coulomb", mu, v_eps)``: F_T = -mu F_N tanh(v_T/v_eps);
+* ``("modified-coulomb", mu, v0=1e-4, v1=1e-3)``: F_T = -mu c_d(|v_T|) F_N sgn(v_T) with
+  c_d = [ramp(|v| - v0, w_v) - ramp(|v| - v1, w_v)] / (v1 - v0) (corners rounded by ``ramp``);
+* ``("lugre", sigma0=1e5, sigma1=316, sigma2=0, mu_s=0.15, mu_k=0.1, v_s=1e-3)``: a state z per
+  clearance joint, z' = v - sigma0 |v|_s z / g(v), g = mu_k + (mu_s - mu_k) exp(-(v/v_s)^2),
+  F_T = -(sigma0 z + sigma1 exp(-(v/v_s)^2) z' + sigma2 v) F_N, |v|_s = sqrt(v^2 + w_v^2).
+w_v (default 1e-5 m/s) is the velocity smoothing width.
+
+Smooth-mode regularisation variants (``smoothing_variant``): ``"jaxclear"`` (default) uses the
+same C1 shapes as the package: damping factor clamped by x * smoothstep(x/w_factor) (exact for
+x >= w_factor), impact velocity floored by v_min + ramp(m - v_min/2, v_min), and the curvature term
+of m' evaluated at e >= 1e-3 c; ``"original"`` keeps this module's first choices: factor clamped by
+ramp(x, w_factor) (shifted by w_factor/2), hyperbolic smooth max for the floor, the curvature term
+dropped only at e = 0.  The differences are O(w_factor) = 1e-3 relative in F_N and O(v_min) in the
+floor; they matter only for comparing the two codes as the *same* model.
 Sign conventions: crank_torque > 0 means the motor does positive work when omega > 0; the reaction
 of an ideal joint is the force magnitude |lambda_J|.  Eccentricities are global x/y components.
 """
@@ -58,6 +76,38 @@ def ramp_potential(d, w):
     return w**4 / (4.0 * (2.0 * w) ** 1.5) + 0.4 * ((d - 0.5 * w) ** 2.5 - (0.5 * w) ** 2.5)
 
 
+def step_clamp(x, w):
+    """C1 max(x, 0) exact outside (0, w): x * smoothstep(x/w) (jaxclear's clamp_nonnegative)."""
+    if x <= 0.0:
+        return 0.0
+    if x >= w:
+        return x
+    u = x / w
+    return x * u * u * (3.0 - 2.0 * u)
+
+
+def friction_law(spec):
+    """Normalise a ``friction=`` tuple to (kind, params dict); None for no friction."""
+    if spec is None:
+        return None
+    kind, args = spec[0], tuple(spec[1:])
+    names = {"coulomb": ("mu", "v_eps"),
+             "modified-coulomb": ("mu", "v0", "v1"),
+             "lugre": ("sigma0", "sigma1", "sigma2", "mu_s", "mu_k", "v_s")}
+    defaults = {"coulomb": {},
+                "modified-coulomb": dict(v0=1e-4, v1=1e-3),
+                "lugre": dict(sigma0=1e5, sigma1=316.0, sigma2=0.0, mu_s=0.15, mu_k=0.1, v_s=1e-3)}
+    if kind not in names:
+        raise ValueError(f"unknown friction law {kind!r}; choose one of {sorted(names)}")
+    if len(args) > len(names[kind]):
+        raise ValueError(f"{kind}: at most {len(names[kind])} parameters {names[kind]}")
+    par = dict(defaults[kind], **dict(zip(names[kind], args)))
+    missing = set(names[kind]) - set(par)
+    if missing:
+        raise ValueError(f"{kind}: missing parameters {sorted(missing)}")
+    return kind, par
+
+
 def memory_weight(d, w_m):
     """1 for d <= -w_m, 0 for d >= 0, cubic smoothstep in between."""
     u = min(max((d + w_m) / w_m, 0.0), 1.0)
@@ -93,8 +143,9 @@ class SliderCrank:
     def __init__(self, clearance_joints=("B",), rpm=5000.0, mode="smooth", restitution=0.9,
                  friction=None, gravity=False, clearance=5e-4, bearing_radius=0.01, E=207e9,
                  nu=0.3, alpha=5.0, beta=5.0, w_delta=1e-7, w_m=1e-7, k_m=1e6, v_min=1e-4,
-                 w_factor=1e-3, track_work=False):
+                 w_factor=1e-3, track_work=False, w_v=1e-5, smoothing_variant="jaxclear"):
         assert mode in ("smooth", "sharp") and set(clearance_joints) <= set("OAB")
+        assert smoothing_variant in ("jaxclear", "original"), smoothing_variant
         self.cj = tuple(j for j in "OAB" if j in clearance_joints)
         self.ij = tuple(j for j in "OAB" if j not in self.cj)
         self.mode, self.omega, self.track_work = mode, rpm * np.pi / 30.0, track_work
@@ -103,6 +154,8 @@ class SliderCrank:
         self.K = 4.0 / (3.0 * 2 * sigma) * np.sqrt(self.RB * self.RJ / clearance)
         self.chi = 0.75 * (1.0 - restitution**2)
         self.friction = friction
+        self.flaw = friction_law(friction)
+        self.w_v, self.variant = w_v, smoothing_variant
         self.alpha, self.beta = alpha, beta
         self.w_delta, self.w_m, self.k_m, self.v_min, self.w_factor = w_delta, w_m, k_m, v_min, w_factor
         self.minv = 1.0 / np.array([v for k in range(3) for v in (MASS[k], MASS[k], INERTIA[k])])
@@ -111,7 +164,9 @@ class SliderCrank:
             self.Qg[[1, 4, 7]] = -GRAV * np.array(MASS)
         self.nc = len(self.cj)
         self.nm = self.nc if mode == "smooth" else 0
-        self.n_state = 18 + self.nm + (1 if track_work else 0)
+        self.nz = self.nc if (self.flaw and self.flaw[0] == "lugre") else 0
+        self.iz = 18 + self.nm  # first LuGre state
+        self.n_state = 18 + self.nm + self.nz + (1 if track_work else 0)
         self.n_eval = 0  # all right-hand-side evaluations (incl. finite-difference Jacobians)
 
     # ---- constraints: ideal revolutes, translational (y2 = 0, phi2 = 0), driver phi0 = omega t
@@ -139,7 +194,37 @@ class SliderCrank:
         return Phi, Pq, gam, Pq @ qd + Phi_t
 
     # ---- clearance joint kinematics and forces (added to Q); returns per-joint info
-    def contact(self, j, q, qd, Q, dminus):
+    def factor_clamp(self, x):
+        """Smooth max(x, 0) of the damping factor (smooth mode)."""
+        if self.variant == "jaxclear":
+            return step_clamp(x, self.w_factor)
+        return ramp(x, self.w_factor)
+
+    def impact_floor(self, m):
+        """Smooth max(m, v_min) of the memorised impact velocity (smooth mode)."""
+        vm = self.v_min
+        if self.variant == "jaxclear":
+            return vm + ramp(m - vm + 0.5 * vm, vm)
+        return 0.5 * (m + vm + np.sqrt((m - vm) ** 2 + (0.1 * vm) ** 2))
+
+    def friction_force(self, vT, FN, z):
+        """(F_T on the journal along t, z') for the slip velocity vT, normal force FN, state z."""
+        if self.flaw is None:
+            return 0.0, 0.0
+        kind, p = self.flaw
+        if kind == "coulomb":
+            return (-p["mu"] * FN * np.tanh(vT / p["v_eps"]) if FN > 0.0 else 0.0), 0.0
+        if kind == "modified-coulomb":
+            sp = abs(vT)
+            cd = (ramp(sp - p["v0"], self.w_v) - ramp(sp - p["v1"], self.w_v)) / (p["v1"] - p["v0"])
+            return -p["mu"] * cd * FN * np.sign(vT), 0.0
+        speed = np.sqrt(vT * vT + self.w_v**2)
+        fade = np.exp(-((vT / p["v_s"]) ** 2))
+        g = p["mu_k"] + (p["mu_s"] - p["mu_k"]) * fade
+        zdot = vT - p["sigma0"] * speed * z / g
+        return -(p["sigma0"] * z + p["sigma1"] * fade * zdot + p["sigma2"] * vT) * FN, zdot
+
+    def contact(self, j, q, qd, Q, dminus, z=0.0):
         i, si, k, sk = JOINTS[j]
         rI, vI, AI, BI = _point(q, qd, i, si)
         rII, vII, AII, BII = _point(q, qd, k, sk)
@@ -152,9 +237,8 @@ class SliderCrank:
             fac = max(0.0, 1.0 + self.chi * ddelta / dminus)
             FN = self.K * max(delta, 0.0) ** 1.5 * fac
         else:
-            m = dminus  # memory state; smooth max with v_min
-            dm = 0.5 * (m + self.v_min + np.sqrt((m - self.v_min) ** 2 + (0.1 * self.v_min) ** 2))
-            fac = ramp(1.0 + self.chi * ddelta / dm, self.w_factor)
+            dm = self.impact_floor(dminus)  # memory state; smooth max with v_min
+            fac = self.factor_clamp(1.0 + self.chi * ddelta / dm)
             FN = self.K * ramp(delta, self.w_delta) ** 1.5 * fac
         armI = (AI if i >= 0 else 0.0) + self.RB * n  # CM -> contact point Q_I
         armII = AII + self.RJ * n  # CM -> contact point Q_II
@@ -162,10 +246,7 @@ class SliderCrank:
         vQI = vI + (qd[3 * i + 2] * (_kx(armI) - BI) if i >= 0 else 0.0)
         vQII = vII + qd[3 * k + 2] * (_kx(armII) - BII)
         vT = t_vec @ (vQII - vQI)
-        FT = 0.0
-        if self.friction is not None and FN > 0.0:
-            _, mu, v_eps = self.friction
-            FT = -mu * FN * np.tanh(vT / v_eps)
+        FT, zdot = self.friction_force(vT, FN, z)
         f = -FN * n + FT * t_vec  # on the journal
         Q[3 * k:3 * k + 2] += f
         Q[3 * k + 2] += _cross(armII, f)
@@ -173,7 +254,7 @@ class SliderCrank:
             Q[3 * i:3 * i + 2] -= f
             Q[3 * i + 2] -= _cross(armI, f)
         return dict(e_vec=e_vec, e=e, n=n, edot=edot, delta=delta, ddelta=ddelta, FN=FN, FT=FT,
-                    vT=vT, i=i, k=k, AI=AI, BI=BI, AII=AII, BII=BII)
+                    vT=vT, zdot=zdot, z=z, i=i, k=k, AI=AI, BI=BI, AII=AII, BII=BII)
 
     def evaluate(self, t, y, dminus=None):
         """Full evaluation: returns (ydot, info dict)."""
@@ -181,7 +262,8 @@ class SliderCrank:
         q, qd = y[:9], y[9:18]
         mem = y[18:18 + self.nm] if self.mode == "smooth" else dminus
         Q = self.Qg.copy()
-        cinfo = [self.contact(j, q, qd, Q, mem[a]) for a, j in enumerate(self.cj)]
+        zs = y[self.iz:self.iz + self.nz] if self.nz else np.zeros(self.nc)
+        cinfo = [self.contact(j, q, qd, Q, mem[a], zs[a]) for a, j in enumerate(self.cj)]
         Phi, Pq, gam, Phid = self.constraints(t, q, qd)
         PM = Pq * self.minv
         rhs = gam - 2 * self.alpha * Phid - self.beta**2 * Phi
@@ -197,10 +279,14 @@ class SliderCrank:
                     eacc = _point_acc(qd, qdd, ci["k"], ci["AII"], ci["BII"]) - _point_acc(
                         qd, qdd, ci["i"], ci["AI"], ci["BI"])
                     dd = ci["n"] @ eacc
-                    if ci["e"] > 1e-15:
+                    if self.variant == "jaxclear":  # (t'e')^2 / max(e, 1e-3 c)
+                        dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / max(ci["e"], 1e-3 * self.c)
+                    elif ci["e"] > 1e-15:
                         dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / ci["e"]
                     mdot[a] = w * (dd + self.k_m * (ci["ddelta"] - mem[a]))
             ydot.append(mdot)
+        if self.nz:
+            ydot.append([ci["zdot"] for ci in cinfo])
         if self.track_work:
             ydot.append([torque * qd[2]])
         return np.concatenate(ydot), dict(qdd=qdd, lam=lam, torque=torque, contacts=cinfo)
@@ -229,7 +315,7 @@ class SliderCrank:
             if self.mode == "sharp":
                 V += 0.4 * self.K * max(d, 0.0) ** 2.5
             else:
-                V += self.K * ramp(1.0, self.w_factor) * ramp_potential(d, self.w_delta)
+                V += self.K * self.factor_clamp(1.0) * ramp_potential(d, self.w_delta)
         return T + V
 
 
@@ -245,11 +331,17 @@ def _delta_event(model, a, offset, direction, terminal):
 
 def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolution=360,
              mode="smooth", method=None, rtol=1e-6, atol=1e-9, restitution=0.9, friction=None,
-             gravity=False, clearance=5e-4, max_step=np.inf, track_work=False, **smoothing):
+             gravity=False, clearance=5e-4, max_step=np.inf, track_work=False, count_onsets=True,
+             **smoothing):
     """Simulate; returns dict of arrays on the uniform grid t plus 'stats'.
 
     smoothing: w_delta, w_m, k_m, v_min, w_factor (smooth mode; v_min also floors the latched
-    impact velocity in sharp mode), alpha, beta (Baumgarte), bearing_radius, E, nu.
+    impact velocity in sharp mode), smoothing_variant ("jaxclear" or "original", see the module
+    doc), w_v (velocity width of the friction laws), alpha, beta (Baumgarte), bearing_radius, E, nu.
+    friction: None, ("coulomb", mu, v_eps), ("modified-coulomb", mu[, v0, v1]) or
+    ("lugre"[, sigma0, sigma1, sigma2, mu_s, mu_k, v_s]) (module doc).
+    count_onsets: smooth mode only; False drops the (non-terminal) delta = 0 events that count
+    contact onsets (stats onsets then 0), e.g. for timing the bare integration.
     """
     model = SliderCrank(clearance_joints, rpm, mode, restitution, friction, gravity, clearance,
                         track_work=track_work, **smoothing)
@@ -264,13 +356,14 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
     nfev, njev, onsets = 0, 0, np.zeros(model.nc, int)
     ys, ctx = [], []  # output states and the latched impact velocities in force at each
     if mode == "smooth":
-        events = [_delta_event(model, a, 0.0, 1, False) for a in range(model.nc)]
+        events = [_delta_event(model, a, 0.0, 1, False) for a in range(model.nc)] if count_onsets else []
         sol = solve_ivp(lambda t, y: model.evaluate(t, y)[0], (0.0, T), y0, method=method,
                         t_eval=grid, events=events or None, rtol=rtol, atol=atol, max_step=max_step)
         if sol.status < 0:
             raise RuntimeError(sol.message)
         nfev, njev = sol.nfev, sol.njev
-        onsets[:] = [len(te) for te in (sol.t_events or [])]
+        if sol.t_events is not None:
+            onsets[:] = [len(te) for te in sol.t_events]
         ys, ctx = list(sol.y.T), [None] * npts
     else:
         HYST = 1e-14  # m: exit event fires at delta = -1e-14 so it cannot stick at a restart
@@ -311,7 +404,8 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
     for j in model.ij:
         out[j + "_reaction"] = np.zeros(npts)
     for j in model.cj:
-        for key in ("ecc_x", "ecc_y", "delta", "penetration", "normal_force", "friction_force"):
+        for key in ("ecc_x", "ecc_y", "delta", "penetration", "normal_force", "friction_force",
+                    "slip_velocity", "friction_state"):
             out[f"{j}_{key}"] = np.zeros(npts)
     for p in range(npts):
         _, info = model.evaluate(grid[p], Y[p], ctx[p])
@@ -322,6 +416,7 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
             out[j + "_ecc_x"][p], out[j + "_ecc_y"][p] = ci["e_vec"]
             out[j + "_delta"][p], out[j + "_penetration"][p] = ci["delta"], max(ci["delta"], 0.0)
             out[j + "_normal_force"][p], out[j + "_friction_force"][p] = ci["FN"], ci["FT"]
+            out[j + "_slip_velocity"][p], out[j + "_friction_state"][p] = ci["vT"], ci["z"]
     if track_work:
         out["drive_work"] = Y[:, -1]
         out["energy"] = np.array([model.energy(yy) for yy in Y])
