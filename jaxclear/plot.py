@@ -108,6 +108,16 @@ def _references(reference) -> Sequence:
     return reference if isinstance(reference, list | tuple) else (reference,)
 
 
+def _angle_ticks(ax, angle) -> None:
+    """Crank-angle axis: ticks every 90° (30° for short runs), limits at the ends of the data."""
+    span = float(np.ptp(angle))
+    if 0 < span <= 1440:
+        ax.xaxis.set_major_locator(MultipleLocator(90 if span > 180 else 30))
+    if span > 0:  # pad by a hair so ticks at the ends (720°) survive round-off in the integrated angle
+        pad = 1e-6 * span
+        ax.set_xlim(angle.min() - pad, angle.max() + pad)
+
+
 def plot_vs_crank_angle(
     traj,
     quantity: str,
@@ -139,12 +149,7 @@ def plot_vs_crank_angle(
         ax.plot(x.values, y.values, label=reference_label if k == 0 else None, **REFERENCE_STYLE)
     angle, ycol = _curve(traj, quantity, "angle")
     ax.plot(angle.values, ycol.values, label=label or ("this run" if refs else None), **MAIN_STYLE)
-    span = float(np.ptp(angle.values))
-    if 0 < span <= 1440:
-        ax.xaxis.set_major_locator(MultipleLocator(90 if span > 180 else 30))
-    if span > 0:  # pad by a hair so ticks at the ends (720°) survive round-off in the integrated angle
-        pad = 1e-6 * span
-        ax.set_xlim(angle.values.min() - pad, angle.values.max() + pad)
+    _angle_ticks(ax, angle.values)
     _finish(ax, "Crank angle (°)", ycol, title, legend=bool(refs) or label is not None, traj=traj)
     return fig
 
@@ -225,6 +230,7 @@ def plot_contact_forces(traj, *, ax=None) -> Figure:
     for k, name in enumerate(clearance_joint_names(traj)):
         angle, force = _curve(traj, f"{name}_normal_force", "angle")
         ax.plot(angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
+        _angle_ticks(ax, angle.values)
     ax.set_xlabel("Crank angle (°)")
     ax.set_ylabel("Normal contact force (kN)")
     ax.set_title(f"Normal contact force{_speed_label(traj)}")

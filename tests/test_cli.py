@@ -9,6 +9,7 @@ cheap clearance run (joint B only, Lankarani-Nikravesh contact, no friction, exp
 import csv
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -237,10 +238,12 @@ def test_help_lists_options_and_keys(capsys):
     for flag in ("--no-progress", "--quiet", "--no-gravity", "rev/min"):
         assert flag in text
     # The defaults: three clearance joints, hybrid contact, LuGre friction; every law name listed.
-    assert "(default: O,A,B)" in text
-    assert "(default: hybrid)" in text
-    assert "(default: lugre)" in text
-    flat = " ".join(text.replace("-\n", "-").split())  # argparse wraps long lines, also at hyphens
+    flat = " ".join(re.sub(r"-\n\s*", "-", text).split())  # argparse wraps to the terminal, also at hyphens
+    assert "--clearance-joints LIST" in flat
+    assert "(default: O,A,B)" in flat
+    assert "(default: hybrid)" in flat
+    assert "(default: lugre)" in flat
+    assert "(default: auto)" in flat
     for name in (*CONTACT_LAWS, *FRICTION_LAWS):
         assert name in flat, name
 

@@ -16,6 +16,7 @@ from ._constraints import constraints
 NEWTON_ITERATIONS = 40
 POSITION_TOLERANCE = 1e-10  # m (or rad): far below any clearance of interest (>= 1 µm)
 RANK_TOLERANCE = 1e-9  # relative singular value below which constraints count as redundant
+STEP_LENGTHS = jnp.array([1.0, 0.5, 0.25, 0.125, 0.0625])  # damped Newton step lengths tried
 
 
 def assembly_constraints(mechanism, q, t):
@@ -57,10 +58,19 @@ def assemble_state(mechanism, t0=0.0):
     t0 = jnp.asarray(t0, dtype=float)
     q, qd = mechanism.initial_guess()
 
+    def residual(q):
+        return jnp.sum(assembly_constraints(mechanism, q, t0) ** 2)
+
     def step(_, q):
         phi = assembly_constraints(mechanism, q, t0)
         jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
-        return q - _least_norm_solve(jac, phi)
+        delta = _least_norm_solve(jac, phi)
+        # damped Newton: the best of a few step lengths (full step first), never worse than q, so a
+        # loop that cannot close settles at its least-squares gap instead of wandering
+        candidates = q[None, :] - STEP_LENGTHS[:, None] * delta[None, :]
+        norms = jax.vmap(residual)(candidates)
+        best = jnp.argmin(norms)
+        return jnp.where(norms[best] < residual(q), candidates[best], q)
 
     q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, step, q)
     phi = assembly_constraints(mechanism, q, t0)
@@ -95,8 +105,8 @@ def check_assembly(mechanism, t0=0.0):
         worst = int(np.argmax(np.abs(phi)))
         if abs(phi[worst]) > POSITION_TOLERANCE * 1e3 or not float(pos_res) < 1e-7:
             raise AssemblyError(
-                f"Mechanism cannot be assembled: {labels[worst]} is off by {phi[worst]:.6g} m (or rad) after "
-                f"{NEWTON_ITERATIONS} Newton iterations. Check link lengths and joint points (does the "
+                f"Mechanism cannot be assembled: {labels[worst]} is off by {phi[worst]:.6g} m (or rad) at the "
+                f"closest (least-squares) configuration, residual norm {np.linalg.norm(phi):.6g} over all rows. Check link lengths and joint points (does the "
                 "loop close?) and the bodies' initial position guesses."
             )
         u, s, _ = np.linalg.svd(jac)
