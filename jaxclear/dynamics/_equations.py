@@ -47,11 +47,37 @@ def solve_accelerations(mechanism, t, q, qd, forces):
     alpha, beta = mechanism.baumgarte_alpha, mechanism.baumgarte_beta
     rhs = gam - 2.0 * alpha * phi_dot - beta**2 * phi
     a = phi_q * inv_mass[None, :]
-    schur = a @ phi_q.T
-    factor = jsl.cho_factor(schur)
-    lam = jsl.cho_solve(factor, a @ forces - rhs)
-    qdd = inv_mass * (forces - phi_q.T @ lam)
+    # Tiny matrices: elementwise products and sums fuse in XLA and beat dot/LAPACK calls on CPU
+    # (measured on the slider-crank: 8.2 -> 6.0 µs per evaluation of this function).
+    schur = jnp.sum(a[:, None, :] * phi_q[None, :, :], axis=-1)
+    lam = spd_solve(schur, jnp.sum(a * forces[None, :], axis=-1) - rhs)
+    qdd = inv_mass * (forces - jnp.sum(phi_q * lam[:, None], axis=0))
     return qdd, lam, phi, phi_dot
+
+
+UNROLLED_CHOLESKY_MAX = 12  # constraint count up to which the Cholesky solve is unrolled at trace time
+
+
+def spd_solve(matrix, rhs):
+    """Solve S x = b for a small symmetric positive definite S (Cholesky).
+
+    Unrolled into elementwise operations for up to ``UNROLLED_CHOLESKY_MAX`` rows, LAPACK above.
+    """
+    m = matrix.shape[0]
+    if m > UNROLLED_CHOLESKY_MAX:
+        return jsl.cho_solve(jsl.cho_factor(matrix), rhs)
+    low = jnp.zeros_like(matrix)
+    for j in range(m):
+        diag = jnp.sqrt(matrix[j, j] - jnp.sum(low[j, :j] ** 2))
+        col = (matrix[j + 1 :, j] - jnp.sum(low[j + 1 :, :j] * low[j, :j][None, :], axis=1)) / diag
+        low = low.at[j, j].set(diag).at[j + 1 :, j].set(col)
+    y = jnp.zeros_like(rhs)
+    for i in range(m):
+        y = y.at[i].set((rhs[i] - jnp.sum(low[i, :i] * y[:i])) / low[i, i])
+    x = jnp.zeros_like(rhs)
+    for i in reversed(range(m)):
+        x = x.at[i].set((y[i] - jnp.sum(low[i + 1 :, i] * x[i + 1 :])) / low[i, i])
+    return x
 
 
 def evaluate(mechanism, t, y):
