@@ -1,7 +1,10 @@
 """The result object of ``simulate``."""
 
+import dataclasses
+
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
@@ -77,6 +80,17 @@ class Trajectory(eqx.Module):
 
     def joint_force_magnitude(self, joint: str) -> Float[Array, " N"]:
         return jnp.linalg.norm(self.reactions[joint], axis=-1)
+
+    def truncated(self) -> "Trajectory":
+        """The saved instants the solver actually reached (t <= t_final), e.g. after a failure.
+
+        Only for a single (unbatched) trajectory.
+        """
+        keep = int(np.sum(np.asarray(self.t) <= float(self.t_final)))
+        per_instant = ("t", "q", "qd", "qdd", "internal_state", "multipliers", "input_torque", "reactions",
+                       "constraint_violation", "velocity_violation", "clearance")
+        changes = {name: jax.tree_util.tree_map(lambda x: x[:keep], getattr(self, name)) for name in per_instant}
+        return dataclasses.replace(self, **changes)
 
     def stats(self) -> dict:
         """Solver statistics as Python numbers."""

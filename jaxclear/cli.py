@@ -548,7 +548,7 @@ def _timed_simulate(mechanism, t1: float, num_points: int, solver, progress: boo
         _block(simulate(mechanism, t1 * WARMUP_FRACTION, num_points=num_points, solver=solver, progress=progress, throw=False))
     compile_time = time.perf_counter() - start
     start = time.perf_counter()
-    traj = _block(simulate(mechanism, t1, num_points=num_points, solver=solver, progress=progress))
+    traj = _block(simulate(mechanism, t1, num_points=num_points, solver=solver, progress=progress, throw=False))
     return traj, compile_time, time.perf_counter() - start
 
 
@@ -607,9 +607,17 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"invalid mechanism: {_one_line(e)}") from None
     except SimulationError as e:
         raise RunError(_one_line(e)) from None
+    failure = None
+    if not bool(traj.succeeded):
+        # keep what was computed: the saved instants before the failure are written as usual,
+        # run.json says status "failed" with the solver's message, and the exit code is 1
+        from ._simulate import failure_error
+
+        failure = failure_error(traj, solver)
+        traj = traj.truncated()
 
     reference = None
-    if names and config["output"]["plots"]:
+    if names and config["output"]["plots"] and failure is None:
         say("ideal-joint reference run for the plots ...", flush=True)
         from ._simulate import simulate
 
@@ -625,7 +633,8 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
 
         info = dict(
             format=RUN_FORMAT,
-            status="complete",
+            status="complete" if failure is None else "failed",
+            error=None if failure is None else _one_line(failure),
             created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
             command=[PROG, *argv],
             config_file=str(Path(args.config).resolve()) if args.config else None,
@@ -666,6 +675,11 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
         f"{torque.max():.6g} N m; max constraint violation {float(np.max(traj.constraint_violation)):.3g} m"
     )
     say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
+    if failure is not None:
+        raise RunError(
+            f"{_one_line(failure)} Partial results up to t = {float(traj.t[-1]):.6g} s are in {out_dir}/ "
+            "(run.json status 'failed')."
+        )
     return 0
 
 

@@ -359,6 +359,22 @@ def test_simulation_failure_exits_1(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "out" / "results.csv").exists()
 
 
+def test_failed_solve_keeps_partial_results(tmp_path, capsys):
+    # a real failure: the step budget runs out part-way; what was computed is still written
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["run", *SHORT, *IDEAL, "--max-steps", "4", "--no-plots", "--out", str(out)])
+    assert exc.value.code == 1
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and "max_steps" in lines[0] and "Partial results" in lines[0], lines
+    info = json.loads((out / "run.json").read_text())
+    assert info["status"] == "failed" and "simulation failed at t =" in info["error"]
+    header, cols = read_csv(out / "results.csv")
+    t = cols["t"]
+    assert 1 < len(t) < NUM_POINTS and t[-1] <= info["stats"]["t_final"]
+    assert np.all(np.isfinite(cols["slider_x"]))
+
+
 def test_unexpected_error_is_one_line(tmp_path, capsys, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("something\nunexpected")
