@@ -31,3 +31,13 @@ def check_positive(owner: str, name: str, value, unit: str = "") -> None:
 def check_shape(owner: str, name: str, value, shape: tuple) -> None:
     if np.shape(value) != shape:
         raise ModelError(f"{owner}: {name} must have shape {shape}, got shape {np.shape(value)}.")
+
+
+def build_from_registry(registry, kind: str, name: str, params: dict):
+    """Instantiate ``registry[name](**params)``; unknown names raise ValueError listing valid ones."""
+    try:
+        cls = registry[name]
+    except KeyError:
+        valid = ", ".join(repr(k) for k in registry)
+        raise ValueError(f"unknown {kind} {name!r}: use one of {valid}") from None
+    return cls(**params)

@@ -2,6 +2,7 @@
 
 import types
 
+from .._checks import build_from_registry
 from ._base import AbstractContactLaw
 from ._cylindrical import Liu2007, Pereira2011
 from ._damped import Flores, Gonthier, HuntCrossley, LankaraniNikravesh, ZhiyingQishao
@@ -43,9 +44,4 @@ def contact_law_from_name(name: str, **params) -> AbstractContactLaw:
         ValueError: ``name`` is not registered (the message lists the valid names), or a
             parameter is invalid.
     """
-    try:
-        cls = CONTACT_LAWS[name]
-    except KeyError:
-        valid = ", ".join(repr(k) for k in CONTACT_LAWS)
-        raise ValueError(f"unknown contact law {name!r}: use one of {valid}") from None
-    return cls(**params)
+    return build_from_registry(CONTACT_LAWS, "contact law", name, params)

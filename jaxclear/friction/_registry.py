@@ -2,6 +2,7 @@
 
 import types
 
+from .._checks import build_from_registry
 from ._base import AbstractFrictionLaw
 from ._coulomb import Coulomb, ModifiedCoulomb
 from ._lugre import LuGre
@@ -32,9 +33,4 @@ def friction_law_from_name(name: str, **params) -> AbstractFrictionLaw:
         ValueError: ``name`` is not registered (the message lists the valid names), or a
             parameter is invalid.
     """
-    try:
-        cls = FRICTION_LAWS[name]
-    except KeyError:
-        valid = ", ".join(repr(k) for k in FRICTION_LAWS)
-        raise ValueError(f"unknown friction law {name!r}: use one of {valid}") from None
-    return cls(**params)
+    return build_from_registry(FRICTION_LAWS, "friction law", name, params)
