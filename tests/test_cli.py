@@ -1,6 +1,6 @@
 """The ``jaxclear run`` command: outputs, config-file layering and every bad-input path.
 
-The default run (three clearance joints, hybrid contact, LuGre friction, KenCarp5) compiles for
+The default run (three clearance joints, hybrid contact, LuGre friction, Tsit5) compiles for
 about half a minute, so it is not simulated here: its settings are checked without simulating, the
 ideal-joint outputs come from ``--clearance-joints none`` runs, and the clearance outputs from one
 cheap clearance run (joint B only, Lankarani-Nikravesh contact, no friction, explicit Tsit5).
@@ -140,10 +140,10 @@ def test_run_json(ideal_run):
 
 
 def test_defaults_are_three_clearance_joints():
-    """The default run, checked without simulating it: O, A, B with clearance, hybrid + LuGre, KenCarp5."""
+    """The default run, checked without simulating it: O, A, B with clearance, hybrid + LuGre, Tsit5."""
     config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run"]))
     assert sources[("clearance", "joints")] == "default"
-    assert cli._solver(config, sources).method == "kencarp5"  # auto -> imex with LuGre
+    assert cli._solver(config, sources).method == "tsit5"  # auto -> fast (measured fastest, LuGre included)
     mechanism = cli._mechanism(config)
     joints = mechanism.clearance_joints
     assert [j.name for j in joints] == ["O", "A", "B"]
@@ -153,9 +153,8 @@ def test_defaults_are_three_clearance_joints():
         assert isinstance(joint.friction_law, LuGre)
         assert float(joint.geometry.clearance) == pytest.approx(CLEARANCE)
     assert cli._grid(config) == (pytest.approx(2 * 60 / 5000), 721)
-    # Without LuGre, auto picks the explicit 'fast' preset.
-    config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run", "--friction", "coulomb"]))
-    assert cli._solver(config, sources).method == "tsit5"
+    config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run", "--solver", "imex"]))
+    assert cli._solver(config, sources).method == "kencarp5"
 
 
 def test_clearance_columns(clearance_run):
