@@ -16,7 +16,7 @@ from ._constraints import constraints
 NEWTON_ITERATIONS = 40
 POSITION_TOLERANCE = 1e-10  # m (or rad): far below any clearance of interest (>= 1 µm)
 RANK_TOLERANCE = 1e-9  # relative singular value below which constraints count as redundant
-STEP_LENGTHS = jnp.array([1.0, 0.5, 0.25, 0.125, 0.0625])  # damped Newton step lengths tried
+STEP_LENGTHS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])  # damped Newton step lengths tried
 
 
 def assembly_constraints(mechanism, q, t):
