@@ -29,7 +29,7 @@ solve is killed after ``--max-wall`` seconds and reported as skipped, and no com
     rhs      (``--rhs-cost``) cost of one right-hand-side evaluation, and of one Jacobian (jacfwd), in
              a compiled ``fori_loop`` of 2000 calls: how much of a step is model evaluation.
 The SciPy reference (tests/reference/scipy_slider_crank.py, independent NumPy code, same model:
-``smoothing_variant="jaxclear"``) runs in smooth mode with ``--scipy-method`` (Radau) at the same
+``smoothing_variant="jaxclear"``, jaxclear's Baumgarte gains) runs in smooth mode with ``--scipy-method`` (Radau) at the same
 tolerances, without its contact-onset events; wall time of the integration only, nfev, njev and all
 right-hand-side calls including finite-difference Jacobian columns.
 
@@ -202,7 +202,16 @@ def rhs_cost_us(mech, y, t):
     return dict(rhs_us=rhs, jac_us=jac, n_state=int(y.shape[0]))
 
 
+def baumgarte_gains():
+    """jaxclear's default Baumgarte (alpha, beta), passed to the reference so both run the same model."""
+    from jaxclear.mechanisms import slider_crank
+
+    mech = slider_crank()
+    return float(mech.baumgarte_alpha), float(mech.baumgarte_beta)
+
+
 def scipy_worker(case, revolutions, method):
+    alpha, beta = baumgarte_gains()
     sys.path.insert(0, os.path.join(REPO, "tests"))
     from reference.scipy_slider_crank import simulate
 
@@ -210,7 +219,7 @@ def scipy_worker(case, revolutions, method):
     friction = ("modified-coulomb", 0.01) if spec["friction"] == "modified-coulomb" else ("lugre",)
     r = simulate(tuple(spec["joints"]), RPM, revolutions, POINTS_PER_REVOLUTION, mode="smooth", method=method,
                  rtol=RTOL, atol=ATOL, restitution=0.9, friction=friction, gravity=False, clearance=CLEARANCE,
-                 count_onsets=False, smoothing_variant="jaxclear")
+                 count_onsets=False, smoothing_variant="jaxclear", alpha=alpha, beta=beta)
     s = r["stats"]
     return dict(case=case, solver="scipy-" + method, run_s=s["wall_time"], nfev=s["nfev"], njev=s["njev"],
                 rhs_evals=s["rhs_evals"], succeeded=True,
@@ -236,10 +245,11 @@ def agreement_worker(case, rtol=1e-10, revolutions=1.0 / 12.0):
     t1 = revolutions * 60.0 / RPM
     ts = np.linspace(0.0, t1, int(round(revolutions * ppr)) + 1)
     out = dict(case=case, rtol=rtol, t1=t1)
+    alpha, beta = baumgarte_gains()
     for variant in ("jaxclear", "original"):
         r = simulate(tuple(spec["joints"]), RPM, revolutions, ppr, mode="smooth", method="Radau", rtol=rtol,
                      atol=rtol * 1e-3, friction=("lugre",) if lugre else ("modified-coulomb", 0.01),
-                     clearance=CLEARANCE, count_onsets=False, smoothing_variant=variant)
+                     clearance=CLEARANCE, count_onsets=False, smoothing_variant=variant, alpha=alpha, beta=beta)
         if variant == "jaxclear":
             ref = r
         else:
@@ -391,7 +401,7 @@ def main():
                 print(f"{solver:<13} skipped ({r['skipped']})  {'':>40} {r['load']:>5.2f}")
             else:
                 ratio = f"{sci['run_s'] / r['run_s']:9.1f}" if sci and "skipped" not in sci else f"{'-':>9}"
-                trace = f"{r.get('trace_s', float('nan')):7.1f} {r.get('xla_s', float('nan')):6.1f}"
+                trace = (f"{r['trace_s']:7.1f} {r['xla_s']:6.1f}" if "xla_s" in r else f"{'-':>7} {'-':>6}")
                 flag = "" if r["succeeded"] else f"  FAILED at t={r['t_final']:.3g}"
                 print(f"{solver:<13} {r['compile_s']:9.1f} {trace} {r['run_s']:8.3f} {r['run_min_s']:8.3f} "
                       f"{r['steps']:7d} {r['rejected']:6d} {1e6 * r['run_s'] / max(r['steps'], 1):8.1f} {ratio} "
