@@ -26,9 +26,9 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._smooth import safe_pow, smooth_ramp
-from ._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing, _array
-from ._damped import damping_factor, lankarani_nikravesh_hysteresis
+from .._smooth import safe_pow
+from ._base import ContactGeometry, _array
+from ._damped import AbstractLNDampedElasticLaw
 from ._hertz import _optional_array, check_positive, check_restitution
 
 # Breakpoint and validity range of the exponent fits, in fit units (mm), Pereira et al. 2011.
@@ -56,7 +56,7 @@ def pereira_exponent(clearance_in_fit_units: Float[Array, ""]) -> Float[Array, "
     return y * dr ** (-0.005)
 
 
-class Pereira2011(AbstractContactLaw):
+class Pereira2011(AbstractLNDampedElasticLaw):
     """Pereira, Ramalho & Ambrósio (2011) internal cylindrical contact with L-N damping [lit].
 
     ``F_N = (a ΔR + b) h E* δ^n / ΔR · (1 + 3(1 − c_e²)/4 · δ̇/δ̇⁻)``, evaluated in the
@@ -90,21 +90,9 @@ class Pereira2011(AbstractContactLaw):
             return self.exponent
         return pereira_exponent(geometry.clearance / self.fit_length_unit)
 
-    def __call__(
-        self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing
-    ) -> tuple[Float[Array, ""], Float[Array, ""]]:
-        """Contact force on the journal in the (n, t) frame, N.
-
-        Args:
-            kin: contact kinematics (penetration, penetration rate, impact velocity).
-            geometry: joint geometry (clearance, pin length, materials).
-            smoothing: regularisation widths.
-
-        Returns:
-            ``(normal, tangential)``, normal ``>= 0``, tangential 0.
-        """
+    def elastic_force(self, delta: Float[Array, ""], geometry: ContactGeometry) -> Float[Array, ""]:
+        """``(a ΔR + b) h E* δ^n / ΔR`` evaluated in the fit's units, N."""
         unit = self.fit_length_unit
-        delta = smooth_ramp(kin.penetration, smoothing.penetration_width)
         dr = geometry.clearance / unit
         n = self.effective_exponent(geometry)
         # (a ΔR_u + b)/ΔR_u · h_u · E*_u · δ_u^n with h_u = h/u, E*_u = E* u² (N/u²), δ_u = δ/u.
@@ -115,18 +103,10 @@ class Pereira2011(AbstractContactLaw):
             * geometry.combined_modulus
             * unit
         )
-        elastic = stiffness * safe_pow(delta / unit, n)
-        factor = damping_factor(
-            lankarani_nikravesh_hysteresis(self.restitution),
-            kin.penetration_rate,
-            kin.impact_velocity,
-            smoothing.force_width,
-        )
-        normal = elastic * factor
-        return normal, jnp.zeros_like(normal)
+        return stiffness * safe_pow(delta / unit, n)
 
 
-class Liu2007(AbstractContactLaw):
+class Liu2007(AbstractLNDampedElasticLaw):
     """Liu, Zhang & Yang (2007) conformal cylindrical contact [lit], with L-N damping [ours].
 
     ``F_N = (π/2) E* h δ √(δ / (2(ΔR + δ))) · (1 + 3(1 − c_e²)/4 · δ̇/δ̇⁻)``. The elastic part is
@@ -143,28 +123,8 @@ class Liu2007(AbstractContactLaw):
     def __check_init__(self):
         check_restitution(self.restitution)
 
-    def __call__(
-        self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing
-    ) -> tuple[Float[Array, ""], Float[Array, ""]]:
-        """Contact force on the journal in the (n, t) frame, N.
-
-        Args:
-            kin: contact kinematics (penetration, penetration rate, impact velocity).
-            geometry: joint geometry (clearance, pin length, materials).
-            smoothing: regularisation widths.
-
-        Returns:
-            ``(normal, tangential)``, normal ``>= 0``, tangential 0.
-        """
-        delta = smooth_ramp(kin.penetration, smoothing.penetration_width)
+    def elastic_force(self, delta: Float[Array, ""], geometry: ContactGeometry) -> Float[Array, ""]:
+        """``(π/2) E* h δ √(δ / (2(ΔR + δ)))``, N."""
         # δ √(δ/(2(ΔR + δ))) = δ^1.5 / √(2(ΔR + δ)): smooth at δ = 0 (ΔR > 0).
         shape = safe_pow(delta, 1.5) / jnp.sqrt(2.0 * (geometry.clearance + delta))
-        elastic = 0.5 * jnp.pi * geometry.combined_modulus * geometry.length * shape
-        factor = damping_factor(
-            lankarani_nikravesh_hysteresis(self.restitution),
-            kin.penetration_rate,
-            kin.impact_velocity,
-            smoothing.force_width,
-        )
-        normal = elastic * factor
-        return normal, jnp.zeros_like(normal)
+        return 0.5 * jnp.pi * geometry.combined_modulus * geometry.length * shape

@@ -96,6 +96,36 @@ def damped_point_force(
     return elastic * factor
 
 
+class AbstractLNDampedElasticLaw(AbstractContactLaw):
+    """Base of laws ``F_N = F_elastic(δ_s) · max(0, 1 + 3(1 − c_e²)/4 · δ̇/δ̇⁻)``.
+
+    Subclasses give the elastic part ``elastic_force(δ_s, geometry)`` and a ``restitution`` field;
+    the Lankarani–Nikravesh factor, the smooth positive penetration δ_s and the clamp are shared.
+    Used by the cylindrical and elastic-foundation laws (their damping is [ours] where MODEL.md gives
+    the law without it; ``restitution=1`` recovers the elastic law).
+    """
+
+    restitution: eqx.AbstractVar[Float[Array, ""]]
+
+    @abc.abstractmethod
+    def elastic_force(self, delta: Float[Array, ""], geometry: ContactGeometry) -> Float[Array, ""]:
+        """Elastic normal force at smooth penetration ``delta`` (m), N."""
+
+    def __call__(
+        self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing
+    ) -> tuple[Float[Array, ""], Float[Array, ""]]:
+        """Contact force on the journal in the (n, t) frame, N: ``(normal >= 0, 0)``."""
+        delta = smooth_ramp(kin.penetration, smoothing.penetration_width)
+        factor = damping_factor(
+            lankarani_nikravesh_hysteresis(self.restitution),
+            kin.penetration_rate,
+            kin.impact_velocity,
+            smoothing.force_width,
+        )
+        normal = self.elastic_force(delta, geometry) * factor
+        return normal, jnp.zeros_like(normal)
+
+
 class AbstractDampedContactLaw(AbstractContactLaw):
     """Base of the point laws ``F_N = K δ^n (1 + χ̂(c_e) δ̇/δ̇⁻)``.
 

@@ -20,9 +20,9 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._smooth import safe_sqrt, smooth_ramp
-from ._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing, _array
-from ._damped import damping_factor, lankarani_nikravesh_hysteresis
+from .._smooth import safe_sqrt
+from ._base import ContactGeometry, _array
+from ._damped import AbstractLNDampedElasticLaw
 from ._hertz import _optional_array, check_count, check_positive, check_restitution
 
 # Below this half-angle θ − sin θ is evaluated by its Taylor series to avoid cancellation.
@@ -125,7 +125,7 @@ def _check_foundation(law) -> None:
         )
 
 
-class ElasticFoundation(AbstractContactLaw):
+class ElasticFoundation(AbstractLNDampedElasticLaw):
     """Closed-form elastic foundation law ``F_N = K_EF (R h/L)(e θ_c − c sin θ_c)`` [ours].
 
     The closed form is elastic; as a usable law it is multiplied by the Lankarani–Nikravesh factor
@@ -161,31 +161,9 @@ class ElasticFoundation(AbstractContactLaw):
         shape = delta * theta + c * _angle_minus_sine(theta)
         return coefficient * shape
 
-    def __call__(
-        self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing
-    ) -> tuple[Float[Array, ""], Float[Array, ""]]:
-        """Contact force on the journal in the (n, t) frame, N.
-
-        Args:
-            kin: contact kinematics (penetration, penetration rate, impact velocity).
-            geometry: joint geometry (radii, pin length, bearing material).
-            smoothing: regularisation widths.
-
-        Returns:
-            ``(normal, tangential)``, normal ``>= 0``, tangential 0 (the arc is symmetric).
-        """
-        delta = smooth_ramp(kin.penetration, smoothing.penetration_width)
-        factor = damping_factor(
-            lankarani_nikravesh_hysteresis(self.restitution),
-            kin.penetration_rate,
-            kin.impact_velocity,
-            smoothing.force_width,
-        )
-        normal = self.elastic_force(delta, geometry) * factor
-        return normal, jnp.zeros_like(normal)
 
 
-class ElasticFoundationDiscrete(AbstractContactLaw):
+class ElasticFoundationDiscrete(AbstractLNDampedElasticLaw):
     """Elastic foundation summed over m2 elements of the contact arc (midpoint rule) [ours].
 
     The arc ``[−θ_c, θ_c]`` (relative to n) is split into ``num_elements`` equal elements of
@@ -228,25 +206,3 @@ class ElasticFoundationDiscrete(AbstractContactLaw):
         local = jnp.maximum(local_penetration(delta, c + delta, psi), 0.0)
         return coefficient * d_theta * jnp.sum(local * jnp.cos(psi))
 
-    def __call__(
-        self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing
-    ) -> tuple[Float[Array, ""], Float[Array, ""]]:
-        """Contact force on the journal in the (n, t) frame, N.
-
-        Args:
-            kin: contact kinematics (penetration, penetration rate, impact velocity).
-            geometry: joint geometry (radii, pin length, bearing material).
-            smoothing: regularisation widths.
-
-        Returns:
-            ``(normal, tangential)``, normal ``>= 0``, tangential 0 (symmetric elements).
-        """
-        delta = smooth_ramp(kin.penetration, smoothing.penetration_width)
-        factor = damping_factor(
-            lankarani_nikravesh_hysteresis(self.restitution),
-            kin.penetration_rate,
-            kin.impact_velocity,
-            smoothing.force_width,
-        )
-        normal = self.elastic_force(delta, geometry) * factor
-        return normal, jnp.zeros_like(normal)
