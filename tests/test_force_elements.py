@@ -8,12 +8,14 @@ import numpy as np
 import pytest
 
 import jaxclear
+from jaxclear.analysis import kinetic_energy, potential_energy
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import NoFriction
 from jaxclear.mechanisms import four_bar
 
 SOLVER = jaxclear.SolverConfig(method="tsit5", rtol=1e-10, atol=1e-12)
 NUM_POINTS = 401
+ENERGY_TOL = 1e-8  # J of 1 J: rtol 1e-10 integration (measured drift 2e-10 J)
 
 
 def slider_on_spring(stiffness, damping, force=0.0, mass=2.0):
@@ -39,6 +41,10 @@ def test_spring_mass_oscillation_matches_closed_form():
     x = np.asarray(traj.coordinates("block")[:, 0])
     expected = 0.05 + 0.05 * np.cos(omega * t)  # released from x = 0.1 at rest, free length 0.05
     np.testing.assert_allclose(x, expected, rtol=0, atol=1e-8)
+    # undamped: kinetic + spring potential (½ k (x0 - l0)² = 1 J) is conserved
+    energy = np.asarray(kinetic_energy(traj) + potential_energy(traj))
+    assert abs(energy[0] - 0.5 * k * 0.05**2) < 1e-12
+    assert np.max(np.abs(energy - energy[0])) < ENERGY_TOL
 
 
 def test_spring_damper_decay_and_static_force():

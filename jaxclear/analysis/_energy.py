@@ -1,5 +1,6 @@
 """Mechanical energy bookkeeping: kinetic, potential, drive work."""
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -22,7 +23,9 @@ def potential_energy(traj):
     springs = jnp.zeros_like(grav)
     for f in mech.forces:
         if hasattr(f, "potential_energy"):
-            springs = springs + jnp.stack([f.potential_energy(mech.index, q) for q in traj.q])
+            q = jnp.reshape(traj.q, (-1, traj.q.shape[-1]))
+            energy = jax.vmap(lambda qq, f=f: f.potential_energy(mech.index, qq))(q)
+            springs = springs + jnp.reshape(energy, springs.shape)
     return grav + springs
 
 
