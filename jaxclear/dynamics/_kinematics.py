@@ -10,6 +10,20 @@ def rotation(phi: Float[Array, ""]) -> Float[Array, "2 2"]:
     return jnp.array([[c, -s], [s, c]])
 
 
+# Small products are written element by element: XLA's CPU backend runs every `dot` as its own
+# kernel, while elementwise arithmetic fuses; in the right-hand side each kernel launch costs
+# ~45 ns, about the price of the arithmetic of a whole joint (measured, benchmarks/bench_clearance.py).
+def dot2(a: Float[Array, "2"], b: Float[Array, "2"]) -> Float[Array, ""]:
+    """aᵀb of two 2-vectors."""
+    return a[0] * b[0] + a[1] * b[1]
+
+
+def rotate(phi: Float[Array, ""], v: Float[Array, "2"]) -> Float[Array, "2"]:
+    """A(φ) v."""
+    c, s = jnp.cos(phi), jnp.sin(phi)
+    return jnp.stack([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
 def body_coordinates(q: Float[Array, " n"], index: int | None):
     """(r, φ) of body ``index`` from the stacked coordinates; ground (``None``) is (0, 0)."""
     if index is None:
@@ -25,7 +39,7 @@ def point_position(q: Float[Array, " n"], index: int | None, local: Float[Array,
     if index is None:
         return jnp.asarray(local, dtype=q.dtype)
     r, phi = body_coordinates(q, index)
-    return r + rotation(phi) @ local
+    return r + rotate(phi, local)
 
 
 def point_velocity(q, qd, index: int | None, local) -> Float[Array, "2"]:
@@ -35,8 +49,7 @@ def point_velocity(q, qd, index: int | None, local) -> Float[Array, "2"]:
     _, phi = body_coordinates(q, index)
     rd, phid = body_coordinates(qd, index)
     c, s = jnp.cos(phi), jnp.sin(phi)
-    b = jnp.array([[-s, -c], [c, -s]])
-    return rd + phid * (b @ local)
+    return rd + phid * jnp.stack([-s * local[0] - c * local[1], c * local[0] - s * local[1]])
 
 
 def cross2(a: Float[Array, "2"], b: Float[Array, "2"]) -> Float[Array, ""]:

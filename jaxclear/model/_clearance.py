@@ -17,6 +17,7 @@ from ..contact._base import AbstractContactLaw, ContactGeometry, ContactKinemati
 from ..dynamics._impact_memory import impact_velocity, memory_rate, memory_relaxation
 from ..dynamics._kinematics import (
     body_coordinates,
+    dot2,
     point_force_to_generalized,
     point_position,
     point_velocity,
@@ -161,15 +162,15 @@ class ClearanceJoint(AbstractForceElement):
         g = self.geometry
         qb = rb + g.bearing_radius * n
         qj = rj + g.journal_radius * n
-        slip = t @ (_contact_point_velocity(q, qd, ij, qj) - _contact_point_velocity(q, qd, ib, qb))
+        slip = dot2(t, _contact_point_velocity(q, qd, ij, qj) - _contact_point_velocity(q, qd, ib, qb))
         return dict(
             eccentricity_vector=ecc,
             eccentricity=e,
             normal=n,
             tangent=t,
             penetration=e - g.clearance,
-            penetration_rate=n @ de,
-            tangential_rate=t @ de,
+            penetration_rate=dot2(n, de),
+            tangential_rate=dot2(t, de),
             bearing_contact_point=qb,
             journal_contact_point=qj,
             slip_velocity=slip,
@@ -219,7 +220,7 @@ class ClearanceJoint(AbstractForceElement):
             k["eccentricity"],
             self.geometry.clearance,
             k["tangential_rate"],
-            k["normal"] @ accel,
+            dot2(k["normal"], accel),
             self.smoothing,
         )
         z_dot = self.friction_law.state_derivative(k["slip_velocity"], f["normal_force"], state[1:], self.smoothing)

@@ -15,7 +15,7 @@ from jaxtyping import Array, Float
 from .._checks import check_finite, check_shape
 from .._checks import is_concrete
 from .._errors import ModelError
-from ..dynamics._kinematics import point_force_to_generalized, point_position, point_velocity
+from ..dynamics._kinematics import dot2, point_force_to_generalized, point_position, point_velocity
 
 import numpy as np
 
@@ -135,11 +135,11 @@ class SpringDamper(AbstractForceElement):
         pi, pj = point_position(q, i, self.point_i), point_position(q, j, self.point_j)
         vi, vj = point_velocity(q, qd, i, self.point_i), point_velocity(q, qd, j, self.point_j)
         d = pj - pi
-        length_sq = d @ d
+        length_sq = dot2(d, d)
         safe = length_sq > 0
         length = jnp.where(safe, jnp.sqrt(jnp.where(safe, length_sq, 1.0)), 0.0)
         u = jnp.where(safe, d / jnp.where(safe, length, 1.0), 0.0)
-        rate = u @ (vj - vi)
+        rate = dot2(u, vj - vi)
         tension = self.stiffness * (length - self.free_length) + self.damping * rate
         f_on_i = tension * u
         return point_force_to_generalized(q, i, pi, f_on_i) + point_force_to_generalized(q, j, pj, -f_on_i)
@@ -148,4 +148,4 @@ class SpringDamper(AbstractForceElement):
         """Elastic energy ½ k (ℓ − ℓ0)², J."""
         i, j = index(self.body_i), index(self.body_j)
         d = point_position(q, j, self.point_j) - point_position(q, i, self.point_i)
-        return 0.5 * self.stiffness * (jnp.sqrt(d @ d) - self.free_length) ** 2
+        return 0.5 * self.stiffness * (jnp.sqrt(dot2(d, d)) - self.free_length) ** 2

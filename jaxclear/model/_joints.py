@@ -15,7 +15,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._checks import check_finite, check_shape
-from ..dynamics._kinematics import body_coordinates, point_position
+from ..dynamics._kinematics import body_coordinates, dot2, point_position
 
 
 def _array(x):
@@ -117,7 +117,7 @@ class TranslationalJoint(AbstractJoint):
         normal_local = jnp.stack([-axis[1], axis[0]])
         c, s = jnp.cos(phi_j), jnp.sin(phi_j)
         normal = jnp.stack([c * normal_local[0] - s * normal_local[1], s * normal_local[0] + c * normal_local[1]])
-        return jnp.stack([phi_i - phi_j - self.angle, normal @ (ri - rj)])
+        return jnp.stack([phi_i - phi_j - self.angle, dot2(normal, ri - rj)])
 
 
 class AbstractDriver(eqx.Module):
