@@ -12,22 +12,27 @@ import jax.numpy as jnp
 import jax.scipy.linalg as jsl
 from jaxtyping import Array, Float
 
+from ._batched import batched_force_and_cache, batched_state_rates, batched_stiff_rates, groups
 from ._constraints import constraint_jacobian, constraints, gamma
 
 
 def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = None) -> Float[Array, " n"]:
     """Q: gravity plus every force element (applied forces, springs, clearance contacts).
 
-    If ``caches`` is a dict, each element's cache (for ``state_derivative_cached``) is stored in it.
+    Same-kind clearance joints are evaluated together (``_batched``). If ``caches`` is a dict, each
+    group's cache (for the state rates) is stored in it under the group's position.
     """
     m = jnp.stack([b.mass for b in mechanism.bodies])
     grav = jnp.concatenate([m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1)
     total = grav.reshape(-1).astype(q.dtype)
-    for element in mechanism.force_elements:
-        force, cache = element.force_and_cache(mechanism.index, q, qd, t, states[element.name])
+    for k, group in enumerate(groups(mechanism)):
+        if len(group) > 1:
+            force, cache = batched_force_and_cache(mechanism, group, q, qd, t, states)
+        else:
+            force, cache = group[0].force_and_cache(mechanism.index, q, qd, t, states[group[0].name])
         total = total + force
         if caches is not None:
-            caches[element.name] = cache
+            caches[k] = cache
     return total
 
 
@@ -87,10 +92,13 @@ def evaluate(mechanism, t, y):
     caches = {}
     forces = generalized_forces(mechanism, t, q, qd, states, caches)
     qdd, lam, phi, phi_dot = solve_accelerations(mechanism, t, q, qd, forces)
-    rates = {
-        e.name: e.state_derivative_cached(caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name])
-        for e in mechanism.force_elements
-    }
+    rates = {}
+    for k, group in enumerate(groups(mechanism)):
+        if len(group) > 1:
+            rates.update(batched_state_rates(mechanism, group, caches[k], q, qd, qdd, t, states))
+        else:
+            e = group[0]
+            rates[e.name] = e.state_derivative_cached(caches[k], mechanism.index, q, qd, qdd, t, states[e.name])
     return dict(
         q=q, qd=qd, qdd=qdd, multipliers=lam, phi=phi, phi_dot=phi_dot, forces=forces, states=states, state_rates=rates
     )
@@ -107,9 +115,15 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """The stiff part of dy/dt (internal states only), integrated implicitly by IMEX solvers."""
     q, qd, states = mechanism.split_state(y)
     n = mechanism.num_coordinates
+    rates = {}
+    for group in groups(mechanism):
+        if len(group) > 1:
+            rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
+        else:
+            e = group[0]
+            rates[e.name] = e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name])
     parts = [jnp.zeros((2 * n,), y.dtype)] + [
-        jnp.reshape(e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name]), (-1,)).astype(y.dtype)
-        for e in mechanism.force_elements
+        jnp.reshape(rates[e.name], (-1,)).astype(y.dtype) for e in mechanism.force_elements
     ]
     return jnp.concatenate(parts)
 

@@ -15,13 +15,7 @@ from .._errors import ModelError
 from .._smooth import safe_norm
 from ..contact._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing
 from ..dynamics._impact_memory import impact_velocity, memory_rate, memory_relaxation
-from ..dynamics._kinematics import (
-    body_coordinates,
-    dot2,
-    point_force_to_generalized,
-    point_position,
-    point_velocity,
-)
+from ..dynamics._kinematics import dot2, point_position, point_velocity
 from ..friction._base import AbstractFrictionLaw
 from ._forces import AbstractForceElement
 
@@ -146,13 +140,24 @@ class ClearanceJoint(AbstractForceElement):
         return rj - ri - self.initial_eccentricity
 
     # --- kinematics and forces ---------------------------------------------------------------
+    # Every computation is written on the coordinates of the two joined bodies only ("local"):
+    # qb, qdb (bearing body) and qj, qdj (journal body), 3-vectors (x, y, φ), zeros for ground.
+    # The mechanism-level methods gather them from q; ``dynamics._batched`` vmaps the local
+    # methods over several joints of the same kind, so three joints cost the kernels of one.
+    def body_indices(self, index) -> tuple[int | None, int | None]:
+        """(bearing, journal) body coordinate indices (``None`` for ground)."""
+        return index(self.bearing_body), index(self.journal_body)
+
     def kinematics(self, index, q, qd) -> dict:
         """Eccentricity, penetration, rates, contact points and slip velocity (MODEL.md §2)."""
-        ib, ij = index(self.bearing_body), index(self.journal_body)
-        rb = point_position(q, ib, self.bearing_point)
-        rj = point_position(q, ij, self.journal_point)
-        vb = point_velocity(q, qd, ib, self.bearing_point)
-        vj = point_velocity(q, qd, ij, self.journal_point)
+        return self.local_kinematics(*_gather(self.body_indices(index), q, qd))
+
+    def local_kinematics(self, qb, qdb, qj, qdj) -> dict:
+        """``kinematics`` from the two bodies' coordinates and velocities (3-vectors each)."""
+        rb = point_position(qb, 0, self.bearing_point)
+        rj = point_position(qj, 0, self.journal_point)
+        vb = point_velocity(qb, qdb, 0, self.bearing_point)
+        vj = point_velocity(qj, qdj, 0, self.journal_point)
         ecc = rj - rb
         e = safe_norm(ecc)
         nonzero = e > 0
@@ -160,9 +165,9 @@ class ClearanceJoint(AbstractForceElement):
         t = _perp(n)
         de = vj - vb
         g = self.geometry
-        qb = rb + g.bearing_radius * n
-        qj = rj + g.journal_radius * n
-        slip = dot2(t, _contact_point_velocity(q, qd, ij, qj) - _contact_point_velocity(q, qd, ib, qb))
+        pb = rb + g.bearing_radius * n
+        pj = rj + g.journal_radius * n
+        slip = dot2(t, _contact_point_velocity(qj, qdj, pj) - _contact_point_velocity(qb, qdb, pb))
         return dict(
             eccentricity_vector=ecc,
             eccentricity=e,
@@ -171,15 +176,19 @@ class ClearanceJoint(AbstractForceElement):
             penetration=e - g.clearance,
             penetration_rate=dot2(n, de),
             tangential_rate=dot2(t, de),
-            bearing_contact_point=qb,
-            journal_contact_point=qj,
+            bearing_contact_point=pb,
+            journal_contact_point=pj,
             slip_velocity=slip,
         )
 
     def contact_forces(self, index, q, qd, state) -> tuple[dict, dict]:
         """(kinematics, forces): forces has normal_force F_N, friction_force F_T (along t on the
         journal, includes the law's own tangential part) and the global force on the journal."""
-        k = self.kinematics(index, q, qd)
+        return self.local_contact_forces(*_gather(self.body_indices(index), q, qd), state)
+
+    def local_contact_forces(self, qb, qdb, qj, qdj, state) -> tuple[dict, dict]:
+        """``contact_forces`` from the two bodies' coordinates and velocities."""
+        k = self.local_kinematics(qb, qdb, qj, qdj)
         kin = ContactKinematics(
             penetration=k["penetration"],
             penetration_rate=k["penetration_rate"],
@@ -196,22 +205,34 @@ class ClearanceJoint(AbstractForceElement):
         return self.force_and_cache(index, q, qd, t, state)[0]
 
     def force_and_cache(self, index, q, qd, t, state):
-        k, f = self.contact_forces(index, q, qd, state)
-        ib, ij = index(self.bearing_body), index(self.journal_body)
+        ib, ij = self.body_indices(index)
+        on_bearing, on_journal, cache = self.local_force_and_cache(*_gather((ib, ij), q, qd), state)
+        force = jnp.zeros_like(q)
+        for i, f in ((ib, on_bearing), (ij, on_journal)):
+            if i is not None:
+                force = force.at[3 * i : 3 * i + 3].add(f)
+        return force, cache
+
+    def local_force_and_cache(self, qb, qdb, qj, qdj, state):
+        """(generalised force on the bearing body (3,), on the journal body (3,), cache)."""
+        k, f = self.local_contact_forces(qb, qdb, qj, qdj, state)
         fj = f["force_on_journal"]
-        force = point_force_to_generalized(q, ij, k["journal_contact_point"], fj) + point_force_to_generalized(
-            q, ib, k["bearing_contact_point"], -fj
-        )
-        return force, (k, f)
+        on_journal = _body_wrench(qj, k["journal_contact_point"], fj)
+        on_bearing = _body_wrench(qb, k["bearing_contact_point"], -fj)
+        return on_bearing, on_journal, (k, f)
 
     def state_derivative(self, index, q, qd, qdd, t, state):
         return self.state_derivative_cached(self.contact_forces(index, q, qd, state), index, q, qd, qdd, t, state)
 
     def state_derivative_cached(self, cache, index, q, qd, qdd, t, state):
+        ib, ij = self.body_indices(index)
+        return self.local_state_derivative(cache, _body(qdd, ib), _body(qdd, ij), *_gather((ib, ij), q, qd), state)
+
+    def local_state_derivative(self, cache, qddb, qddj, qb, qdb, qj, qdj, state):
+        """Internal-state rates (ṁ, friction states) from the cache of ``local_force_and_cache``."""
         k, f = cache
-        ib, ij = index(self.bearing_body), index(self.journal_body)
-        accel = _point_acceleration(q, qd, qdd, ij, self.journal_point) - _point_acceleration(
-            q, qd, qdd, ib, self.bearing_point
+        accel = _point_acceleration(qj, qdj, qddj, self.journal_point) - _point_acceleration(
+            qb, qdb, qddb, self.bearing_point
         )
         m_dot = memory_rate(
             state[0],
@@ -232,7 +253,11 @@ class ClearanceJoint(AbstractForceElement):
         Kinematics only (no contact law): the implicit solve differentiates this function, so it
         is kept cheap; friction laws' stiff parts must not depend on the normal force.
         """
-        k = self.kinematics(index, q, qd)
+        return self.local_stiff_state_derivative(*_gather(self.body_indices(index), q, qd), state)
+
+    def local_stiff_state_derivative(self, qb, qdb, qj, qdj, state):
+        """``stiff_state_derivative`` from the two bodies' coordinates and velocities."""
+        k = self.local_kinematics(qb, qdb, qj, qdj)
         m_dot = memory_relaxation(state[0], k["penetration"], k["penetration_rate"], self.smoothing)
         z_dot = self.friction_law.stiff_state_derivative(k["slip_velocity"], state[1:], self.smoothing)
         return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
@@ -256,21 +281,29 @@ class ClearanceJoint(AbstractForceElement):
         return out
 
 
-def _contact_point_velocity(q, qd, index, point):
-    """Velocity of the body-fixed material point currently at global ``point``."""
-    if index is None:
-        return jnp.zeros(2, dtype=q.dtype)
-    r, _ = body_coordinates(q, index)
-    rd, phid = body_coordinates(qd, index)
-    return rd + phid * _perp(point - r)
+def _body(x, i):
+    """Coordinates (or velocities, accelerations) of body ``i`` as a 3-vector; zeros for ground."""
+    return jnp.zeros(3, dtype=x.dtype) if i is None else x[3 * i : 3 * i + 3]
 
 
-def _point_acceleration(q, qd, qdd, index, local):
+def _gather(indices, q, qd):
+    """(qb, qdb, qj, qdj) for body indices (bearing, journal)."""
+    ib, ij = indices
+    return _body(q, ib), _body(qd, ib), _body(q, ij), _body(qd, ij)
+
+
+def _body_wrench(qk, point, force):
+    """Generalised force (F_x, F_y, (r_P − r_k) × F) on a body with coordinates ``qk``."""
+    d = point - qk[:2]
+    return jnp.stack([force[0], force[1], d[0] * force[1] - d[1] * force[0]])
+
+
+def _contact_point_velocity(qk, qdk, point):
+    """Velocity of the body-fixed material point currently at global ``point`` (zero for ground)."""
+    return qdk[:2] + qdk[2] * _perp(point - qk[:2])
+
+
+def _point_acceleration(qk, qdk, qddk, local):
     """r̈ + φ̈ B s' − φ̇² A s' of a body-fixed point."""
-    if index is None:
-        return jnp.zeros(2, dtype=q.dtype)
-    r, phi = body_coordinates(q, index)
-    _, phid = body_coordinates(qd, index)
-    rdd, phidd = body_coordinates(qdd, index)
-    s = point_position(q, index, local) - r
-    return rdd + phidd * _perp(s) - phid**2 * s
+    s = point_position(qk, 0, local) - qk[:2]
+    return qddk[:2] + qddk[2] * _perp(s) - qdk[2] ** 2 * s
