@@ -98,7 +98,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         terms = diffrax.ODETerm(vector_field)
     sol = diffrax.diffeqsolve(
         terms,
-        config.make_solver(),
+        config.make_solver(num_explicit=2 * mechanism.num_coordinates),
         t0,
         t1,
         config.dt0,

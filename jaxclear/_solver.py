@@ -8,6 +8,8 @@ import dataclasses
 import diffrax
 import equinox as eqx
 
+from ._root_finder import DiagonalNewton
+
 EXPLICIT = {"tsit5": diffrax.Tsit5, "dopri5": diffrax.Dopri5, "dopri8": diffrax.Dopri8, "bosh3": diffrax.Bosh3}
 IMPLICIT = {"kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4, "kvaerno5": diffrax.Kvaerno5}
 IMEX = {"kencarp3": diffrax.KenCarp3, "kencarp4": diffrax.KenCarp4, "kencarp5": diffrax.KenCarp5}
@@ -64,7 +66,13 @@ class SolverConfig(eqx.Module):
         """Copy with some settings changed."""
         return dataclasses.replace(self, **changes)
 
-    def make_solver(self):
+    def make_solver(self, num_explicit: int | None = None):
+        """The diffrax solver. ``num_explicit``: for IMEX methods, the number of leading state
+        components (q, q̇) that the stiff part leaves alone; their stage equations are then solved
+        by ``DiagonalNewton`` (no dense Jacobian), otherwise by ``diffrax.VeryChord``."""
+        if self.imex and num_explicit is not None:
+            root = DiagonalNewton(self.newton_rtol, self.newton_atol, num_explicit, affine=True)
+            return IMEX[self.method](root_finder=root)
         if self.implicit:
             root = diffrax.VeryChord(rtol=self.newton_rtol, atol=self.newton_atol)
             return {**IMPLICIT, **IMEX}[self.method](root_finder=root)

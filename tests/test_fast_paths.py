@@ -1,0 +1,160 @@
+"""The speed-ups must not change the model: batched clearance joints, the Gauss–Jordan Schur solve,
+and the IMEX stage solver (``DiagonalNewton``) with its contract on the stiff rates."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optimistix as optx
+import pytest
+
+import jaxclear
+from jaxclear._root_finder import DiagonalNewton
+from jaxclear.contact import Hybrid, LankaraniNikravesh
+from jaxclear.dynamics._batched import groups
+from jaxclear.dynamics._equations import spd_solve, stiff_vector_field, vector_field
+from jaxclear.friction import FRICTION_LAWS, LuGre, friction_law_from_name
+from jaxclear.mechanisms import slider_crank
+
+RNG = np.random.default_rng(7)
+
+
+def _perturbed_state(mech, scale=2e-4):
+    """An assembled state with journals moved off-centre and random velocities and internal states."""
+    y = np.array(jaxclear.assemble(mech, 0.0))
+    n = mech.num_coordinates
+    y[:n] += scale * RNG.standard_normal(n)
+    y[n : 2 * n] += 0.5 * RNG.standard_normal(n)
+    y[2 * n :] = 1e-6 * RNG.standard_normal(y.shape[0] - 2 * n)
+    return jnp.asarray(y)
+
+
+def _unbatched_rates(mech, t, y):
+    """dy/dt with every force element through its own mechanism-level methods (no vmap)."""
+    from jaxclear.dynamics._equations import solve_accelerations
+
+    q, qd, states = mech.split_state(y)
+    total = jnp.zeros_like(q)
+    for e in mech.force_elements:
+        total = total + e.generalized_force(mech.index, q, qd, t, states[e.name])
+    qdd = solve_accelerations(mech, t, q, qd, total)[0]
+    rates = [e.state_derivative(mech.index, q, qd, qdd, t, states[e.name]) for e in mech.force_elements]
+    return jnp.concatenate([qd, qdd, *rates])
+
+
+@pytest.mark.parametrize("friction", ["lugre", "modified-coulomb"])
+def test_batched_joints_equal_one_by_one(friction):
+    mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction))
+    assert [len(g) for g in groups(mech)] == [3]
+    for _ in range(3):
+        y = _perturbed_state(mech)
+        batched = np.asarray(vector_field(0.001, y, mech))
+        single = np.asarray(_unbatched_rates(mech, 0.001, y))
+        np.testing.assert_allclose(batched, single, rtol=1e-12, atol=1e-9 * np.max(np.abs(single)))
+        assert np.max(np.abs(single[9:18])) > 1.0  # contact forces are acting
+
+
+def test_grouping_keeps_different_laws_apart():
+    # B with another restitution (array value): same group; A with another law class or static
+    # option: own group.
+    mech = slider_crank(
+        clearance_joints={
+            "O": dict(contact_law=Hybrid(num_elements=16)),
+            "A": dict(contact_law=Hybrid(num_elements=8)),
+            "B": dict(contact_law=Hybrid(num_elements=16, restitution=0.5)),
+        },
+        clearance=5e-4,
+    )
+    assert sorted(tuple(e.name for e in g) for g in groups(mech)) == [("A",), ("O", "B")]
+    mech2 = slider_crank(
+        clearance_joints={"O": dict(contact_law=LankaraniNikravesh()), "A": {}, "B": {}}, clearance=5e-4
+    )
+    assert sorted(tuple(e.name for e in g) for g in groups(mech2)) == [("A", "B"), ("O",)]
+    y = _perturbed_state(mech)
+    np.testing.assert_allclose(
+        np.asarray(vector_field(0.0, y, mech)), np.asarray(_unbatched_rates(mech, 0.0, y)), rtol=1e-12, atol=1e-6
+    )
+
+
+def test_gauss_jordan_solve_matches_numpy():
+    for m in (1, 2, 3, 7, 12, 13):
+        a = RNG.standard_normal((m, m + 3))
+        s = a @ a.T + 1e-3 * np.eye(m)
+        b = RNG.standard_normal(m)
+        np.testing.assert_allclose(np.asarray(spd_solve(jnp.asarray(s), jnp.asarray(b))), np.linalg.solve(s, b),
+                                   rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("friction", list(FRICTION_LAWS))
+def test_stiff_rates_are_affine_and_diagonal_in_the_internal_states(friction):
+    """The contract DiagonalNewton(affine=True) relies on, for every friction law with the memory."""
+    mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction))
+    n = 2 * mech.num_coordinates
+    for _ in range(2):
+        y = _perturbed_state(mech)
+        jac = np.asarray(jax.jacfwd(lambda z: stiff_vector_field(0.0, z, mech))(y))
+        assert np.all(jac[:n] == 0.0)  # q, q̇ rows of the stiff part are zero
+        block = jac[n:, n:]
+        np.testing.assert_array_equal(block, np.diag(np.diag(block)))  # diagonal in the internal states
+        # affine: the Jacobian does not depend on the internal states
+        y2 = y.at[n:].set(1e-3 * jnp.asarray(RNG.standard_normal(y.shape[0] - n)))
+        jac2 = np.asarray(jax.jacfwd(lambda z: stiff_vector_field(0.0, z, mech))(y2))
+        np.testing.assert_allclose(jac2[n:, n:], block, rtol=1e-12, atol=0.0)
+
+
+def _stage_residual(mech, y_partial, h):
+    """r(f) = f − f_I(y_partial + h f), the f-space stage equation of diffrax's IMEX solvers."""
+    return lambda f, args: f - stiff_vector_field(0.0, y_partial + h * f, mech)
+
+
+@pytest.mark.parametrize("affine", [True, False])
+def test_diagonal_newton_solves_the_stage_equation(affine):
+    mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, friction_law=LuGre())
+    n = 2 * mech.num_coordinates
+    y_partial = _perturbed_state(mech)
+    fn = _stage_residual(mech, y_partial, 1e-5)  # h·rate ≈ 1e2: stiff
+    start = jnp.asarray(RNG.standard_normal(y_partial.shape[0]))  # explicit rows wrong on purpose
+    solver = DiagonalNewton(rtol=1e-10, atol=1e-12, num_explicit=n, affine=affine)
+    sol = optx.root_find(fn, solver, start, max_steps=10, throw=False)
+    assert sol.result == optx.RESULTS.successful
+    assert int(sol.stats["num_steps"]) == (1 if affine else 2)
+    residual = np.asarray(fn(sol.value, None))
+    assert np.max(np.abs(residual)) < 1e-9 * max(1.0, float(np.max(np.abs(np.asarray(sol.value)))))
+    assert np.all(np.asarray(sol.value)[:n] == 0.0)
+
+
+def test_diagonal_newton_general_mode_is_safe_on_coupled_rows():
+    # Coupled rows break the diagonal assumption: the one-step (affine) mode stops at a wrong point
+    # (the contract test above guards the stiff rates against that); the general mode says it
+    # failed instead of returning that point.
+    a = jnp.array([[1.0, 0.0, 0.0], [0.0, 2.0, 5.0], [0.0, 5.0, 2.0]])
+    b = jnp.array([0.0, 1.0, 0.0])
+    fn = lambda f, args: a @ f - b  # noqa: E731
+    general = DiagonalNewton(rtol=1e-10, atol=1e-12, num_explicit=1, affine=False)
+    sol = optx.root_find(fn, general, jnp.zeros(3), max_steps=100, throw=False)
+    assert sol.result == optx.RESULTS.nonlinear_divergence
+    one_step = DiagonalNewton(rtol=1e-10, atol=1e-12, num_explicit=1, affine=True)
+    wrong = optx.root_find(fn, one_step, jnp.zeros(3), max_steps=100, throw=False)
+    assert np.max(np.abs(np.asarray(fn(wrong.value, None)))) > 0.1
+
+
+@pytest.fixture(scope="module")
+def lugre_runs():
+    """B joint with LuGre over the first 0.5 ms (first contact, with a stick phase), IMEX with
+    DiagonalNewton vs Dopri8. Tight tolerances: at rtol 1e-6 both explicit and IMEX solvers miss the
+    stick phase (see tests/test_solver_accuracy.py)."""
+    mech = slider_crank(clearance_joints="B", clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
+                        friction_law=LuGre())
+    ts = np.linspace(0.0, 0.5e-3, 51)
+    imex = jaxclear.simulate(mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="kencarp5", rtol=1e-9, atol=1e-12))
+    ref = jaxclear.simulate(mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14))
+    return imex, ref
+
+
+def test_imex_with_diagonal_newton_matches_explicit_reference(lugre_runs):
+    imex, ref = lugre_runs
+    assert imex.stats()["succeeded"] and ref.stats()["succeeded"]
+    ecc = lambda tr: np.stack([np.asarray(tr.clearance["B"][k]) for k in ("ecc_x", "ecc_y")], -1)  # noqa: E731
+    assert np.max(np.abs(np.asarray(ref.clearance["B"]["normal_force"]))) > 100.0  # contact happened
+    np.testing.assert_allclose(ecc(imex), ecc(ref), atol=1e-9)  # m, of a 5e-4 m clearance
+    np.testing.assert_allclose(np.asarray(imex.clearance["B"]["friction_state"]),
+                               np.asarray(ref.clearance["B"]["friction_state"]), atol=1e-10)  # of 1e-6 m
