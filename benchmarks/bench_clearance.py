@@ -4,7 +4,8 @@ Usage:
     python benchmarks/bench_clearance.py [--quick] [--cases a,b,c] [--solvers tsit5,kencarp5,kvaerno5]
                                          [--repeats N] [--max-wall S] [--compile-method aot|first-call]
                                          [--no-scipy] [--scipy-method Radau] [--rhs-cost] [--agreement]
-                                         [--pin-cpu K] [--compile-cache DIR]
+                                         [--pin-cpu K] [--compile-cache DIR] [--fast-compile]
+                                         [--first-contact]
 
 Cases (5000 rpm, 2 revolutions, c = 0.5 mm, R_B = 10 mm, steel, c_e = 0.9, no gravity, 360 output points
 per revolution, rtol 1e-6, atol 1e-9, all smoothing widths at their defaults):
@@ -28,6 +29,10 @@ solve is killed after ``--max-wall`` seconds and reported as skipped, and no com
     steps    diffrax ``num_steps`` (accepted + rejected) and ``num_rejected_steps``.
     rhs      (``--rhs-cost``) cost of one right-hand-side evaluation, and of one Jacobian (jacfwd), in
              a compiled ``fori_loop`` of 2000 calls: how much of a step is model evaluation.
+    first contact  (``--first-contact``) max distance (µm) of each solver's journal orbits from a
+             converged solution (Dopri8, rtol 1e-12) over the first 1.5 ms: the first contacts and,
+             with LuGre, the first stick phase. Whether a solver run at rtol 1e-6 follows the
+             converged solution there, or has already switched to another branch of the motion.
 The SciPy reference (tests/reference/scipy_slider_crank.py, independent NumPy code, same model:
 ``smoothing_variant="jaxclear"``, jaxclear's Baumgarte gains) runs in smooth mode with ``--scipy-method`` (Radau) at the same
 tolerances, without its contact-onset events; wall time of the integration only, nfev, njev and all
@@ -47,8 +52,9 @@ worker to CPU K (``os.sched_setaffinity`` before JAX starts, like ``taskset -c K
 runs up to 2x faster and far less variable on a loaded 2-core machine. ``--compile-cache DIR`` turns
 on JAX's persistent compilation cache (the XLA part of the compile time is then paid once across
 processes; tracing is not cached). It needs ``EQX_ON_ERROR=nan``, which the workers then set: JAX
-refuses to cache executables with host callbacks, and equinox's runtime checks (``eqx.error_if`` in
-``_simulate_core``) are host callbacks otherwise. Prints figures only; no assertions.
+refuses to cache executables with host callbacks, and diffrax's runtime checks (``eqx.error_if``)
+are host callbacks otherwise. ``--fast-compile`` sets XLA_FLAGS=--xla_cpu_use_fusion_emitters=false
+in the workers (what ``jaxclear run`` does by default). Prints figures only; no assertions.
 """
 
 import argparse
@@ -98,7 +104,8 @@ def cycle_stats(t, acc, torque, normal_forces, revolutions):
 
 
 # ----------------------------------------------------------------------------------- workers
-def jax_worker(case, solver, revolutions, repeats, compile_method, max_steps, rhs_cost, run_budget):
+def jax_worker(case, solver, revolutions, repeats, compile_method, max_steps, rhs_cost, run_budget,
+               first_contact=None):
     t_import = time.perf_counter()
     import jax
     import jax.numpy as jnp
@@ -168,7 +175,49 @@ def jax_worker(case, solver, revolutions, repeats, compile_method, max_steps, rh
                                revolutions)
     if rhs_cost:
         out.update(rhs_cost_us(mech, np.asarray(traj.y_final), t1))
+    if first_contact:
+        # Same shapes as the timed runs (only t1 and the grid values change): no new compile.
+        ref = np.load(first_contact)
+        ts_fc = jnp.asarray(ref["t"])
+        if compile_method == "aot":
+            fc = compiled(mech, ts_fc, jnp.asarray(0.0), jnp.asarray(float(ref["t"][-1])), y0, config, False)
+        else:
+            fc = jaxclear.simulate(mech, float(ref["t"][-1]), ts=np.asarray(ref["t"]), solver=config, throw=False)
+        out["first_contact_um"] = {
+            j: 1e6 * float(np.max(np.hypot(np.asarray(fc.clearance[j]["ecc_x"]) - ref[j + "_ecc_x"],
+                                            np.asarray(fc.clearance[j]["ecc_y"]) - ref[j + "_ecc_y"])))
+            for j in spec["joints"]}
     return out
+
+
+FIRST_CONTACT_S = 1.5e-3  # first contacts of every case and, with LuGre, the first stick phase
+FIRST_CONTACT_RTOL = 1e-12
+
+
+def first_contact_reference(case, path):
+    """Converged journal orbits over the first ``FIRST_CONTACT_S`` (Dopri8, rtol 1e-12), saved to ``path``
+    on a grid of the timed runs' size (so each solver reuses its compiled code)."""
+    import jaxclear
+    from jaxclear.contact import LankaraniNikravesh
+    from jaxclear.friction import LuGre, ModifiedCoulomb
+    from jaxclear.mechanisms import slider_crank
+
+    spec = CASES[case]
+    friction = ModifiedCoulomb(0.01) if spec["friction"] == "modified-coulomb" else LuGre()
+    mech = slider_crank(rpm=RPM, clearance_joints=",".join(spec["joints"]), clearance=CLEARANCE,
+                        contact_law=LankaraniNikravesh(restitution=0.9), friction_law=friction, gravity=False)
+    n = grid(2.0)[1].size
+    ts = np.linspace(0.0, FIRST_CONTACT_S, n)
+    cfg = jaxclear.SolverConfig(method="dopri8", rtol=FIRST_CONTACT_RTOL, atol=FIRST_CONTACT_RTOL * 1e-3,
+                                max_steps=5_000_000)
+    t0 = time.perf_counter()
+    tr = jaxclear.simulate(mech, FIRST_CONTACT_S, ts=ts, solver=cfg)
+    arrays = {"t": ts}
+    for j in spec["joints"]:
+        arrays[j + "_ecc_x"] = np.asarray(tr.clearance[j]["ecc_x"])
+        arrays[j + "_ecc_y"] = np.asarray(tr.clearance[j]["ecc_y"])
+    np.savez(path, **arrays)
+    return dict(case=case, path=path, steps=tr.stats()["num_steps"], wall_s=time.perf_counter() - t0)
 
 
 def rhs_cost_us(mech, y, t):
@@ -321,6 +370,10 @@ def main():
                    help="also check pointwise agreement with the reference over the first 1 ms at rtol 1e-10")
     p.add_argument("--pin-cpu", type=int, default=None, help="pin each worker process to this CPU")
     p.add_argument("--compile-cache", default=None, help="directory for JAX's persistent compilation cache")
+    p.add_argument("--fast-compile", action="store_true",
+                   help="workers compile with XLA_FLAGS=--xla_cpu_use_fusion_emitters=false (as the CLI default)")
+    p.add_argument("--first-contact", action="store_true",
+                   help="also measure each solver's distance from a converged solution over the first 1.5 ms")
     p.add_argument("--worker", help=argparse.SUPPRESS)
     a = p.parse_args()
 
@@ -328,9 +381,12 @@ def main():
         job = json.loads(a.worker)
         if job.get("pin_cpu") is not None:
             os.sched_setaffinity(0, {job["pin_cpu"]})  # before JAX creates its thread pool
+        if job.get("fast_compile"):
+            os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_use_fusion_emitters=false").strip()
         if job.get("compile_cache"):
-            # JAX does not cache executables with host callbacks; equinox's runtime checks
-            # (eqx.error_if in _simulate_core) are host callbacks unless EQX_ON_ERROR=nan.
+            # JAX does not cache executables with host callbacks; jaxclear's own input checks are
+            # values (Trajectory.input_error), but diffrax's checks (eqx.error_if on the save
+            # times) are host callbacks unless EQX_ON_ERROR=nan.
             os.environ["EQX_ON_ERROR"] = "nan"
             import jax
 
@@ -339,7 +395,9 @@ def main():
             jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
         if job["kind"] == "jax":
             res = jax_worker(job["case"], job["solver"], job["revolutions"], job["repeats"], job["compile_method"],
-                             job["max_steps"], job["rhs_cost"], job["run_budget"])
+                             job["max_steps"], job["rhs_cost"], job["run_budget"], job.get("first_contact"))
+        elif job["kind"] == "fcref":
+            res = first_contact_reference(job["case"], job["path"])
         elif job["kind"] == "agree":
             res = agreement_worker(job["case"])
         else:
@@ -349,7 +407,7 @@ def main():
 
     revolutions = a.revolutions if a.revolutions is not None else (0.25 if a.quick else 2.0)
     max_wall = a.max_wall if a.max_wall is not None else (300.0 if a.quick else 900.0)
-    SPAWN_OPTIONS.update(pin_cpu=a.pin_cpu, compile_cache=a.compile_cache)
+    SPAWN_OPTIONS.update(pin_cpu=a.pin_cpu, compile_cache=a.compile_cache, fast_compile=a.fast_compile)
     cases = [c.strip() for c in a.cases.split(",") if c.strip()]
     solvers = [s.strip() for s in a.solvers.split(",") if s.strip()]
     import jax
@@ -367,7 +425,8 @@ def main():
              else "first simulate() call minus median steady-state call")
           + f"; run: median of up to {a.repeats} calls; max {max_wall:.0f} s per solver"
           + (f"; workers pinned to CPU {a.pin_cpu}" if a.pin_cpu is not None else "; workers not pinned")
-          + (f"; persistent compilation cache {a.compile_cache}" if a.compile_cache else ""))
+          + (f"; persistent compilation cache {a.compile_cache}" if a.compile_cache else "")
+          + ("; XLA CPU fusion emitters off (--fast-compile)" if a.fast_compile else ""))
     print("issue figures (2 revolutions, 2 cores): CVODES BDF + C RHS 0.10 / 0.15 / 0.12 s (a / b / c); "
           "SciPy Radau ~6 s (a)")
     print("cycle stats: RMS slider acceleration (m/s^2) and RMS torque (N m) over "
@@ -384,6 +443,15 @@ def main():
         print("-" * (len(hdr) + 20))
         rows = []
         sci = None
+        fc_path = None
+        if a.first_contact:
+            import tempfile
+
+            fc_path = os.path.join(tempfile.mkdtemp(prefix="jaxclear-fc-"), f"first_contact_{case}.npz")
+            ref = spawn(dict(kind="fcref", case=case, path=fc_path), max_wall)
+            if "skipped" in ref:
+                print(f"first-contact reference skipped ({ref['skipped']})")
+                fc_path = None
         if not a.no_scipy:
             l0 = load()
             sci = spawn(dict(kind="scipy", case=case, revolutions=revolutions, method=a.scipy_method), max_wall)
@@ -393,7 +461,7 @@ def main():
             l0 = load()
             job = dict(kind="jax", case=case, solver=solver, revolutions=revolutions, repeats=a.repeats,
                        compile_method=a.compile_method, max_steps=a.max_steps, rhs_cost=a.rhs_cost,
-                       run_budget=0.5 * max_wall)
+                       run_budget=0.5 * max_wall, first_contact=fc_path)
             r = spawn(job, max_wall)
             r["load"] = max(l0, load())
             rows.append(r)
@@ -406,6 +474,9 @@ def main():
                 print(f"{solver:<13} {r['compile_s']:9.1f} {trace} {r['run_s']:8.3f} {r['run_min_s']:8.3f} "
                       f"{r['steps']:7d} {r['rejected']:6d} {1e6 * r['run_s'] / max(r['steps'], 1):8.1f} {ratio} "
                       f"{r['load']:5.2f}  {fmt_stats(r, spec['joints'])}{flag}")
+                if "first_contact_um" in r:
+                    print(f"  {'':<11} first {1e3 * FIRST_CONTACT_S:g} ms vs Dopri8 rtol {FIRST_CONTACT_RTOL:g}: max orbit "
+                          "distance (um) " + ", ".join(f"{j} {d:.3g}" for j, d in r["first_contact_um"].items()))
             sys.stdout.flush()
         if sci is not None:
             if "skipped" in sci:

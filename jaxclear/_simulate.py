@@ -10,9 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._checks import is_concrete
-from ._errors import ModelError, SimulationError
+from ._errors import AssemblyError, ModelError, SimulationError
 from ._solver import SolverConfig, solver_config
-from ._trajectory import Trajectory
+from ._trajectory import INPUT_ERRORS, Trajectory
 from .dynamics._assembly import assemble_state, check_assembly
 from .dynamics._equations import evaluate, nonstiff_vector_field, stiff_vector_field, vector_field
 
@@ -74,23 +74,24 @@ def _outputs(mechanism, t, y):
     )
 
 
-def _value_checks(mechanism, y0):
+def _input_error(mechanism, y0, assembled_ok):
+    """Code of the first failed input check (``INPUT_ERRORS``), 0 if none."""
     masses = mechanism.mass_diagonal
-    y0 = eqx.error_if(
-        y0, jnp.any(~(masses > 0)), "mass and inertia of every body must be positive and finite (see Body)"
-    )
-    return eqx.error_if(y0, jnp.any(~jnp.isfinite(y0)), "initial state is not finite: check the parameters")
+    return jnp.select(
+        [~assembled_ok, jnp.any(~(masses > 0) | ~jnp.isfinite(masses)), jnp.any(~jnp.isfinite(y0))],
+        [1, 2, 3],
+        0,
+    ).astype(jnp.int32)
 
 
 @eqx.filter_jit
 def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bool):
+    assembled_ok = jnp.asarray(True)
     if y0 is None:
         q0, qd0, pos_res, _ = assemble_state(mechanism, t0)
-        q0 = eqx.error_if(
-            q0, ~(pos_res < ASSEMBLY_TOLERANCE), "mechanism cannot be assembled: run jaxclear.assemble() for details"
-        )
+        assembled_ok = pos_res < ASSEMBLY_TOLERANCE
         y0 = initial_state(mechanism, q0, qd0)
-    y0 = _value_checks(mechanism, y0)
+    input_error = _input_error(mechanism, y0, assembled_ok)
     saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)])
     if config.imex:
         terms = diffrax.MultiTerm(diffrax.ODETerm(nonstiff_vector_field), diffrax.ODETerm(stiff_vector_field))
@@ -129,6 +130,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],
         result=sol.result,
+        input_error=input_error,
         t_final=sol.ts[1][-1],
         y_final=sol.ys[1][-1],
         mechanism=mechanism,
@@ -195,9 +197,23 @@ def simulate(
         if y0.shape != (mechanism.state_size,):
             raise ValueError(f"y0 must have shape ({mechanism.state_size},), got {y0.shape}.")
     traj = _simulate_core(mechanism, grid, jnp.asarray(t0), jnp.asarray(t1), y0, config, progress)
+    raise_input_errors(traj)
     if throw and not bool(traj.succeeded):
         raise failure_error(traj, config)
     return traj
+
+
+def raise_input_errors(traj: Trajectory) -> None:
+    """Raise ``ModelError`` (``AssemblyError`` for code 1) for the input checks made inside the
+    compiled solve; for a batch, name the failing members."""
+    codes = np.atleast_1d(np.asarray(traj.input_error))
+    bad = np.flatnonzero(codes)
+    if bad.size == 0:
+        return
+    code = int(codes[bad[0]])
+    where = f" (batch members {bad.tolist()} of {codes.size})" if np.ndim(traj.input_error) else ""
+    error = AssemblyError if code == 1 else ModelError
+    raise error(INPUT_ERRORS[code] + where + ".")
 
 
 def _result_message(result) -> str:
@@ -250,8 +266,12 @@ def simulate_batch(
         t1, t0, ts, num_points, solver: as in ``simulate``.
 
     Returns:
-        A batched ``Trajectory``. Members that fail do not raise: check ``traj.succeeded`` and
-        ``traj.t_final`` per member.
+        A batched ``Trajectory``. Members whose solve fails do not raise: check ``traj.succeeded``
+        and ``traj.t_final`` per member.
+
+    Raises:
+        AssemblyError, ModelError: some members cannot be assembled or have invalid values (the
+            message lists them).
     """
     config = solver_config(solver)
     grid = _time_grid(float(t0), float(t1), ts, num_points)
@@ -259,4 +279,6 @@ def simulate_batch(
     def one(p):
         return _simulate_core(build(p), grid, jnp.asarray(t0, float), jnp.asarray(t1, float), None, config, False)
 
-    return eqx.filter_vmap(one)(parameters)
+    traj = eqx.filter_vmap(one)(parameters)
+    raise_input_errors(traj)
+    return traj

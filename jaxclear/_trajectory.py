@@ -10,6 +10,16 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 
+INPUT_ERRORS = {
+    1: "mechanism cannot be assembled: run jaxclear.assemble() on it for details",
+    2: "mass and inertia of every body must be positive and finite (see Body)",
+    3: "initial state is not finite: check the parameters",
+}
+"""Codes of ``Trajectory.input_error``: checks made inside the compiled solve. They are returned
+as values, not raised by host callbacks (``eqx.error_if``), so that the compiled solve can be
+stored in JAX's persistent compilation cache."""
+
+
 class Trajectory(eqx.Module):
     """A simulated trajectory sampled on the output grid.
 
@@ -32,6 +42,9 @@ class Trajectory(eqx.Module):
         clearance: per clearance joint a dict of outputs (eccentricity, penetration, forces, mode).
         num_steps, num_accepted_steps, num_rejected_steps: solver statistics (scalars).
         result: diffrax outcome (``diffrax.RESULTS``); success unless the solve failed.
+        input_error: 0, or the code of a check of the inputs made inside the compiled solve
+            (``INPUT_ERRORS``: the mechanism could not be assembled, a mass or inertia is not
+            positive, the initial state is not finite); ``simulate`` raises for it.
         t_final: time the solver reached, s (equals the end time on success).
         y_final: state at ``t_final``.
         mechanism: the simulated mechanism (names, parameters).
@@ -52,6 +65,7 @@ class Trajectory(eqx.Module):
     num_accepted_steps: Int[Array, ""]
     num_rejected_steps: Int[Array, ""]
     result: diffrax.RESULTS
+    input_error: Int[Array, ""]
     t_final: Float[Array, ""]
     y_final: Float[Array, " S"]
     mechanism: eqx.Module
@@ -59,7 +73,7 @@ class Trajectory(eqx.Module):
     @property
     def succeeded(self):
         """Boolean (array for batched runs): did the solve reach the end time?"""
-        return self.result == diffrax.RESULTS.successful
+        return (self.result == diffrax.RESULTS.successful) & (self.input_error == 0)
 
     def coordinates(self, body: str) -> Float[Array, "N 3"]:
         """(x, y, φ) of a body over time."""

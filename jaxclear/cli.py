@@ -188,6 +188,16 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("solver", "rtol", float, None, "", "relative tolerance of the adaptive step", "--rtol", "positive"),
     Setting("solver", "atol", float, None, "", "absolute tolerance of the adaptive step", "--atol", "positive"),
     Setting("solver", "max_steps", int, None, "", "most solver steps before giving up", "--max-steps", "positive"),
+    Setting(
+        "solver",
+        "fast_compile",
+        bool,
+        True,
+        "",
+        "compile with XLA's CPU fusion emitters off (XLA_FLAGS=--xla_cpu_use_fusion_emitters=false): "
+        "measured 5.4 -> 2.2 s XLA time for about a tenth longer runs (Tsit5, three joints)",
+        "--fast-compile",
+    ),
     # [output]
     Setting("output", "directory", str, "jaxclear-out", "", "output folder, relative to the current directory", "--out"),
     Setting("output", "plots", bool, True, "", "write the PNG plots", "--plots"),
@@ -574,6 +584,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
 
     config, sources = resolve_settings(args)
     solver = _solver(config, sources)
+    fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX's backend starts
     try:
         mechanism = _mechanism(config)
     except (ModelError, ValueError, TypeError) as e:
@@ -650,6 +661,7 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             stats=traj.stats(),
             compile_time_s=compile_time,
             run_time_s=run_time,
+            fast_compile=fast_compile,
             timing=(
                 "compile_time_s: wall time of a warm-up simulate call over "
                 f"{WARMUP_FRACTION:g} of the horizon with identical shapes and settings (tracing, XLA "
@@ -682,6 +694,34 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
             "(run.json status 'failed')."
         )
     return 0
+
+
+FAST_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
+
+
+def apply_fast_compile(on: bool) -> str:
+    """Add ``FAST_COMPILE_FLAG`` to XLA_FLAGS if ``on`` and JAX's backend has not started yet.
+
+    XLA reads its flags once, when the backend starts (the first array is made); this runs before.
+    Returns what happened, for run.json: ``"on"``, ``"off"``, ``"set by XLA_FLAGS"`` or
+    ``"not applied: JAX backend already started"`` (e.g. ``main()`` called from a Python process
+    that already used JAX).
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_use_fusion_emitters" in flags:
+        return "set by XLA_FLAGS"
+    if not on:
+        return "off"
+    try:
+        from jax._src import xla_bridge
+
+        started = xla_bridge.backends_are_initialized()
+    except (ImportError, AttributeError):  # private API: assume started, change nothing
+        started = True
+    if started:
+        return "not applied: JAX backend already started"
+    os.environ["XLA_FLAGS"] = f"{flags} {FAST_COMPILE_FLAG}".strip()
+    return "on"
 
 
 def main(argv: list[str] | None = None) -> int:
