@@ -155,7 +155,7 @@ def simulate(
     t0: float = 0.0,
     ts=None,
     num_points: int | None = None,
-    solver: "str | SolverConfig" = "robust",
+    solver: "str | SolverConfig" = "auto",
     y0=None,
     progress: bool = False,
     throw: bool = True,
@@ -172,7 +172,9 @@ def simulate(
         t0: start time, s.
         ts: output times (increasing, inside [t0, t1]); default ``num_points`` uniform points.
         num_points: number of uniform output points if ``ts`` is not given (default 201).
-        solver: preset name (``"robust"``, ``"fast"``, ``"accurate"``), method name or ``SolverConfig``.
+        solver: ``"auto"`` (``imex`` with LuGre friction, else ``fast``; see
+            ``recommended_solver``), a preset name (``"robust"``, ``"fast"``, ``"imex"``,
+            ``"accurate"``), a method name or a ``SolverConfig``.
         y0: initial state (from ``assemble``) to skip assembly.
         progress: show a progress bar (tqdm) over simulated time.
         throw: raise ``SimulationError`` if the solve fails (else inspect ``Trajectory.result``).
@@ -185,7 +187,7 @@ def simulate(
         AssemblyError: the mechanism cannot be assembled.
         SimulationError: the solver failed (gives the time reached, the state and a fix).
     """
-    config = solver_config(solver)
+    config = solver_config(solver, mechanism)
     t0, t1 = float(t0), float(t1)
     if not (np.isfinite(t1) and t1 > t0):
         raise ValueError(f"t1 must be finite and greater than t0={t0}, got {t1}.")
@@ -256,7 +258,7 @@ def simulate_batch(
     t0: float = 0.0,
     ts=None,
     num_points: int | None = None,
-    solver: "str | SolverConfig" = "robust",
+    solver: "str | SolverConfig" = "auto",
 ) -> Trajectory:
     """Simulate many variants of a mechanism in one vectorised (``vmap``) solve.
 
@@ -273,6 +275,10 @@ def simulate_batch(
         AssemblyError, ModelError: some members cannot be assembled or have invalid values (the
             message lists them).
     """
+    if solver == "auto":
+        # the friction laws (which decide) are static: build one member abstractly to see them
+        first = jax.tree_util.tree_map(lambda x: x[0], parameters)
+        solver = solver_config("auto", eqx.filter_eval_shape(build, first))
     config = solver_config(solver)
     grid = _time_grid(float(t0), float(t1), ts, num_points)
 

@@ -90,7 +90,7 @@ def _solver_help() -> str:
     from ._solver import METHODS, PRESETS
 
     return (
-        f"auto (= fast, measured fastest on the benchmark), a preset ({', '.join(PRESETS)}) "
+        f"auto (imex with LuGre friction, else fast: measured fastest), a preset ({', '.join(PRESETS)}) "
         f"or a diffrax method ({', '.join(METHODS)})"
     )
 
@@ -102,11 +102,10 @@ def _contact_names() -> str:
 
 
 DEFAULT_SOLVER = "auto"
-"""Default: ``auto`` picks ``fast`` (explicit Tsit5). Measured on the default three-joint run
-(hybrid + LuGre, 2 revolutions, 2-core machine): Tsit5 compile 9.8 s + run 4.4 s (52 365 steps)
-against KenCarp5 (``imex``) compile 29–32 s + run 3.7–4.3 s (7 218–8 611 steps); with
-Lankarani–Nikravesh + LuGre, Tsit5 1.5 s against KenCarp5 3.1 s (benchmarks/bench_clearance.py).
-``auto`` is the hook for a smarter choice (e.g. ``imex`` for much stiffer LuGre parameters)."""
+"""Default: ``auto`` = ``jaxclear.recommended_solver``: ``imex`` (KenCarp5, implicit in the internal
+states) with LuGre friction, ``fast`` (Tsit5) otherwise. Measured on the default three-joint run
+(hybrid + LuGre, 2 revolutions, 2-core machine, fast_compile on): KenCarp5 compile 5.8 s + run
+0.77 s (9 424 steps), Tsit5 4.9 s + 1.52 s (48 011 steps), Kvaerno5 (``robust``) 14.2 s + 3.3 s."""
 
 SETTINGS: tuple[Setting, ...] = (
     # [mechanism]: the benchmark slider-crank, MODEL.md §6
@@ -325,7 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
             "slider on a guide) driven at constant crank speed, and write results.csv, results.npz,\n"
             "run.json and PNG plots into --out DIR. Defaults: clearance joints O, A, B (c = 0.5 mm,\n"
             "hybrid contact law, LuGre friction), 5000 rpm, 2 revolutions, 360 points per revolution,\n"
-            "no gravity, solver 'auto' (= fast, explicit Tsit5, measured fastest on this benchmark).\n"
+            "no gravity, solver 'auto' (imex with LuGre friction, else fast; measured fastest here).\n"
             "'--clearance-joints none' gives ideal joints."
         ),
         epilog=EPILOG,
@@ -434,13 +433,14 @@ def _check(s: Setting, value, source: str) -> None:
         raise UsageError(f"{source} must be zero or positive, got {value!r}")
 
 
-def _solver(config: dict, sources: dict):
-    from ._solver import solver_config
+def _solver(config: dict, sources: dict, mechanism=None):
+    """The run's SolverConfig; ``auto`` is decided from ``mechanism`` (``recommended_solver``)."""
+    from ._solver import recommended_solver, solver_config
 
     section = config["solver"]
     name = section["method"]
     if name == "auto":
-        name = "fast"
+        name = recommended_solver(mechanism).method if mechanism is not None else "fast"
     if name not in _solver_names():
         source = sources[("solver", "method")]
         raise UsageError(f"{source}: solver {name!r} is unknown; choose a {_solver_help()}")
@@ -583,12 +583,13 @@ def _run(args: argparse.Namespace, argv: list[str]) -> int:
     from ._outputs import RUN_FORMAT, package_versions, write_results
 
     config, sources = resolve_settings(args)
-    solver = _solver(config, sources)
+    _solver(config, sources)  # reject a bad solver name before any work
     fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX's backend starts
     try:
         mechanism = _mechanism(config)
     except (ModelError, ValueError, TypeError) as e:
         raise UsageError(f"invalid mechanism: {_one_line(e)}") from None
+    solver = _solver(config, sources, mechanism)
     t1, num_points = _grid(config)
     out_dir = Path(config["output"]["directory"])
     if out_dir.exists() and not out_dir.is_dir():

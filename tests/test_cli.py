@@ -143,8 +143,10 @@ def test_defaults_are_three_clearance_joints():
     """The default run, checked without simulating it: O, A, B with clearance, hybrid + LuGre, Tsit5."""
     config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run"]))
     assert sources[("clearance", "joints")] == "default"
-    assert cli._solver(config, sources).method == "tsit5"  # auto -> fast (measured fastest, LuGre included)
     mechanism = cli._mechanism(config)
+    assert cli._solver(config, sources, mechanism).method == "kencarp5"  # auto with LuGre -> imex (measured)
+    config_c, sources_c = cli.resolve_settings(cli.build_parser().parse_args(["run", "--friction", "coulomb"]))
+    assert cli._solver(config_c, sources_c, cli._mechanism(config_c)).method == "tsit5"  # auto otherwise -> fast
     joints = mechanism.clearance_joints
     assert [j.name for j in joints] == ["O", "A", "B"]
     assert not {"O", "A", "B"} & {j.name for j in mechanism.joints}

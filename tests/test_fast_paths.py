@@ -158,3 +158,13 @@ def test_imex_with_diagonal_newton_matches_explicit_reference(lugre_runs):
     np.testing.assert_allclose(ecc(imex), ecc(ref), atol=1e-9)  # m, of a 5e-4 m clearance
     np.testing.assert_allclose(np.asarray(imex.clearance["B"]["friction_state"]),
                                np.asarray(ref.clearance["B"]["friction_state"]), atol=1e-10)  # of 1e-6 m
+
+
+def test_auto_solver_choice():
+    """``auto``: IMEX when a friction law has internal states (LuGre), Tsit5 otherwise."""
+    assert jaxclear.recommended_solver(slider_crank()).method == "tsit5"
+    assert jaxclear.recommended_solver(slider_crank(clearance_joints="B", friction_law=LuGre())).method == "kencarp5"
+    coulomb = slider_crank(clearance_joints="O,A,B", friction_law=friction_law_from_name("modified-coulomb"))
+    assert jaxclear.recommended_solver(coulomb).method == "tsit5"
+    with pytest.raises(ValueError, match="solver 'auto' needs the mechanism"):
+        jaxclear._solver.solver_config("auto")

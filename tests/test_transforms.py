@@ -95,7 +95,7 @@ def _build(p):
 @pytest.fixture(scope="module")
 def batched():
     params = jax.tree_util.tree_map(jnp.asarray, BATCH)
-    return jaxclear.simulate_batch(_build, params, T1, num_points=NUM_POINTS, solver="fast")
+    return jaxclear.simulate_batch(_build, params, T1, num_points=NUM_POINTS, solver="auto")  # ideal joints: auto -> fast
 
 
 def test_batch_matches_loop(batched):
