@@ -18,6 +18,12 @@ from .dynamics._equations import evaluate, nonstiff_vector_field, stiff_vector_f
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
+# diffrax traces the vector field once per Runge–Kutta stage (and per Jacobian); wrapped in a jit,
+# the stages share one traced function, which XLA then inlines (same compiled code, less tracing).
+_FULL = eqx.filter_jit(vector_field)
+_STIFF = eqx.filter_jit(stiff_vector_field)
+_NONSTIFF = eqx.filter_jit(nonstiff_vector_field)
+
 
 def initial_state(mechanism, q0, qd0):
     """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
@@ -94,9 +100,9 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
     input_error = _input_error(mechanism, y0, assembled_ok)
     saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)])
     if config.imex:
-        terms = diffrax.MultiTerm(diffrax.ODETerm(nonstiff_vector_field), diffrax.ODETerm(stiff_vector_field))
+        terms = diffrax.MultiTerm(diffrax.ODETerm(_NONSTIFF), diffrax.ODETerm(_STIFF))
     else:
-        terms = diffrax.ODETerm(vector_field)
+        terms = diffrax.ODETerm(_FULL)
     sol = diffrax.diffeqsolve(
         terms,
         config.make_solver(num_explicit=2 * mechanism.num_coordinates),

@@ -55,7 +55,7 @@ def test_nan_parameter_set_after_construction_is_named_by_simulate():
 
 
 def test_unknown_solver_name():
-    with pytest.raises(ValueError, match=r"solver 'euler' is unknown; choose a preset"):
+    with pytest.raises(ValueError, match=r"solver 'euler' is unknown; choose 'auto', a preset"):
         jaxclear.simulate(slider_crank(), T1, solver="euler")
     with pytest.raises(ValueError, match=r"solver method 'rk4' is unknown"):
         jaxclear.SolverConfig(method="rk4")
