@@ -185,3 +185,26 @@ def test_default_solver_follows_the_converged_solution_through_the_first_contact
     assert float(np.max(np.asarray(r["normal_force"]))) > 1e3  # impacts happened
     dist = np.hypot(np.asarray(b["ecc_x"]) - np.asarray(r["ecc_x"]), np.asarray(b["ecc_y"]) - np.asarray(r["ecc_y"]))
     assert np.max(dist) < 2e-7
+
+
+def test_gradient_through_the_imex_solver():
+    """d(ecc_x at 0.25 ms)/dc with LuGre through KenCarp5 + DiagonalNewton (what ``auto`` picks): the
+    implicit-function gradient of the stage solves agrees with a central difference of the Tsit5
+    solution (measured 0.8846 vs 0.8836, 1e-3 relative; the IMEX solution's own difference quotient
+    is noisier, 0.890, because its step sequence changes with c)."""
+    ts = np.linspace(0.0, 2.5e-4, 11)
+
+    def build(c):
+        return slider_crank(clearance_joints="B", clearance=c, contact_law=LankaraniNikravesh(restitution=0.9),
+                            friction_law=LuGre())
+
+    y0 = jaxclear.assemble(build(5e-4))
+
+    def ecc(c, solver):
+        return jaxclear.simulate(build(c), 2.5e-4, ts=ts, y0=y0, solver=solver).clearance["B"]["ecc_x"][-1]
+
+    grad = float(jax.grad(lambda c: ecc(c, "imex"))(5e-4))
+    h = 1e-8
+    fd = (float(ecc(5e-4 + h, "fast")) - float(ecc(5e-4 - h, "fast"))) / (2 * h)
+    assert abs(fd) > 0.5  # the contact has moved the journal
+    assert abs(grad - fd) < 5e-3 * abs(fd)
