@@ -60,7 +60,10 @@ def solve_accelerations(mechanism, t, q, qd, forces):
     return qdd, lam, phi, phi_dot
 
 
-UNROLLED_SOLVE_MAX = 12  # constraint count up to which the solve is unrolled at trace time
+UNROLLED_SOLVE_MAX = 8
+"""Constraint count up to which the solve is unrolled at trace time. Measured per solve inside a
+compiled loop (one core): 3 rows 0.10 µs unrolled vs 0.71 µs LAPACK Cholesky, 7 rows 0.57 vs 0.93 µs,
+9 rows 1.76 vs 1.02 µs."""
 
 
 def spd_solve(matrix, rhs):
