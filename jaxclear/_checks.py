@@ -1,7 +1,8 @@
 """Construction-time value checks shared by the model objects.
 
 Checks run only on concrete values; under ``jit``/``vmap`` (tracers) they are skipped and
-value checks fall to ``eqx.error_if`` inside ``simulate``.
+value checks fall to the compiled solve's input checks (``Trajectory.input_error``, raised by
+``simulate``).
 """
 
 import jax
