@@ -55,3 +55,15 @@ def central_difference_jvp(fn, x, v, *, eps=None, scale=None):
     xm = jax.tree_util.tree_map(lambda a, b: a - eps * b, x, v)
     fp, fm = fn(xp), fn(xm)
     return jax.tree_util.tree_map(lambda a, b: (a - b) / (2 * eps), fp, fm)
+
+
+def contact_kinematics(delta, rate, impact, tangential=0.0):
+    """``ContactKinematics`` from numbers or arrays (its fields are annotated as float arrays)."""
+    from jaxclear.contact import ContactKinematics
+
+    return ContactKinematics(
+        jnp.asarray(delta, dtype=float),
+        jnp.asarray(rate, dtype=float),
+        jnp.asarray(impact, dtype=float),
+        jnp.asarray(tangential, dtype=float),
+    )

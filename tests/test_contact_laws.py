@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from helpers import contact_kinematics
 from jaxclear.contact import (
     CONTACT_LAWS,
     AdamsImpact,
     ContactGeometry,
-    ContactKinematics,
     ElasticFoundation,
     ElasticFoundationDiscrete,
     Hertz,
@@ -56,24 +56,13 @@ ALGEBRA_RTOL = 1e-10
 SHARP_RTOL = 1e-7
 
 
-def _kin(delta, rate, impact, tangential=0.0):
-    """ContactKinematics from numbers or arrays (its fields are annotated as float arrays)."""
-    return ContactKinematics(
-        jnp.asarray(delta, dtype=float),
-        jnp.asarray(rate, dtype=float),
-        jnp.asarray(impact, dtype=float),
-        jnp.asarray(tangential, dtype=float),
-    )
-
-
-
 def _grid():
     mesh = np.meshgrid(PENETRATIONS, RATES, IMPACT_VELOCITIES, TANGENTIAL_RATES, indexing="ij")
     return tuple(jnp.asarray(m.ravel()) for m in mesh)
 
 
 def _evaluate(law, geometry, smoothing, delta, rate, impact, tangential):
-    kin = _kin(delta, rate, impact, tangential)
+    kin = contact_kinematics(delta, rate, impact, tangential)
     normal, tang = law(kin, geometry, smoothing)
     return jnp.stack([normal, tang])
 
@@ -199,7 +188,7 @@ def test_laws_build_under_vmap_with_traced_parameters():
     # Construction-time checks must skip tracers: batch the restitution coefficient.
     def force(restitution):
         law = LankaraniNikravesh(restitution=restitution)
-        return law(_kin(1e-5, 0.3, 0.5), GEOMETRY, SMOOTHING)[0]
+        return law(contact_kinematics(1e-5, 0.3, 0.5), GEOMETRY, SMOOTHING)[0]
 
     forces = jax.jit(jax.vmap(force))(jnp.asarray([0.5, 0.9, 1.0]))
     assert bool(jnp.all(jnp.diff(forces) < 0.0))  # more damping, more force while compressing
@@ -211,7 +200,7 @@ def test_hertz_stiffness_of_benchmark_joint():
     expected = 4.0 / (3.0 * sigma) * math.sqrt(r_star)
     np.testing.assert_allclose(float(GEOMETRY.hertz_stiffness), expected, rtol=ALGEBRA_RTOL)
     np.testing.assert_allclose(float(GEOMETRY.hertz_stiffness), 6.61e10, rtol=HERTZ_QUOTED_RTOL)
-    kin = _kin(2e-5, 0.0, 0.5)
+    kin = contact_kinematics(2e-5, 0.0, 0.5)
     np.testing.assert_allclose(
         float(Hertz()(kin, GEOMETRY, SHARP)[0]), expected * 2e-5**1.5, rtol=SHARP_RTOL
     )
@@ -234,7 +223,7 @@ def test_damped_laws_hysteresis_factor(name, restitution):
     delta, impact = 2e-5, 0.5
     hertz = float(GEOMETRY.hertz_stiffness) * delta**1.5
     for rate in (0.0, 0.15, -0.15):
-        force = float(law(_kin(delta, rate, impact), GEOMETRY, SHARP)[0])
+        force = float(law(contact_kinematics(delta, rate, impact), GEOMETRY, SHARP)[0])
         expected = hertz * (1.0 + HYSTERESIS[name](restitution) * rate / impact)
         np.testing.assert_allclose(force, expected, rtol=SHARP_RTOL)
 
@@ -242,14 +231,14 @@ def test_damped_laws_hysteresis_factor(name, restitution):
 def test_damped_law_force_is_clamped_in_late_restitution():
     # Flores at c_e = 0.5: χ̂ = 1.6, so 1 + χ̂ δ̇/δ̇⁻ < 0 once δ̇ < −δ̇⁻/1.6.
     law = contact_law_from_name("flores", restitution=0.5)
-    force = law(_kin(1e-5, -0.4, 0.5), GEOMETRY, SMOOTHING)[0]
+    force = law(contact_kinematics(1e-5, -0.4, 0.5), GEOMETRY, SMOOTHING)[0]
     assert float(force) == 0.0
 
 
 @eqx.filter_jit
 def _log_slope_jit(law, geometry, smoothing, delta):
     def log_force(log_delta):
-        kin = _kin(jnp.exp(log_delta), 0.0, 0.5)
+        kin = contact_kinematics(jnp.exp(log_delta), 0.0, 0.5)
         return jnp.log(law(kin, geometry, smoothing)[0])
 
     return jax.grad(log_force)(jnp.log(delta))
@@ -276,7 +265,7 @@ def test_liu_small_and_large_penetration():
     e_star = 207e9 / (2.0 * (1.0 - 0.3**2))
     delta = 2e-5
     expected = 0.5 * math.pi * e_star * 0.01 * delta * math.sqrt(delta / (2.0 * (dr + delta)))
-    kin = _kin(delta, 0.0, 0.5)
+    kin = contact_kinematics(delta, 0.0, 0.5)
     np.testing.assert_allclose(float(law(kin, GEOMETRY, SHARP)[0]), expected, rtol=SHARP_RTOL)
 
 
@@ -319,7 +308,7 @@ def test_pereira_units_agree_with_johnson_conformal_contact():
             return p / (math.pi * e_star) * (math.log(4 * math.pi * e_star * CLEARANCE / p) - 1) - d
 
         load = brentq(johnson, 1e-3, 1e8)
-        force = float(law(_kin(delta, 0.0, 0.5), GEOMETRY, SHARP)[0])
+        force = float(law(contact_kinematics(delta, 0.0, 0.5), GEOMETRY, SHARP)[0])
         np.testing.assert_allclose(force, load * h, rtol=PEREIRA_JOHNSON_RTOL)
 
 
@@ -340,7 +329,7 @@ FOUNDATION_SMALL_DELTA_RTOL = 1e-3
 def test_foundation_laws_match_hertz_at_small_penetration(law):
     stiffness = float(GEOMETRY.hertz_stiffness)
     for delta in (2e-8, 1e-7):
-        force = float(law(_kin(delta, 0.0, 0.5), GEOMETRY, SHARP)[0])
+        force = float(law(contact_kinematics(delta, 0.0, 0.5), GEOMETRY, SHARP)[0])
         np.testing.assert_allclose(force, stiffness * delta**1.5, rtol=FOUNDATION_SMALL_DELTA_RTOL)
         assert abs(_log_slope(law, delta) - 1.5) < FOUNDATION_SMALL_DELTA_RTOL
 
@@ -355,7 +344,7 @@ def test_elastic_foundation_closed_form_and_layer_ratio():
         e = c + delta
         theta = math.acos(c / e)
         expected = k_ef * radius * h / layer * (e * theta - c * math.sin(theta))
-        kin = _kin(delta, 0.0, 0.5)
+        kin = contact_kinematics(delta, 0.0, 0.5)
         force = ElasticFoundation(restitution=1.0)(kin, GEOMETRY, SHARP)
         np.testing.assert_allclose(float(force[0]), expected, rtol=1e-9)  # acos loses digits
 
@@ -364,8 +353,8 @@ def test_adams_impact_damping_step():
     law = AdamsImpact(max_damping=2e3, max_damping_penetration=2e-5)
     rate = 0.3
     for delta, step in ((4e-5, 1.0), (2e-5, 1.0), (1e-5, 0.5), (5e-6, 0.15625)):
-        with_rate = float(law(_kin(delta, rate, 0.5), GEOMETRY, SHARP)[0])
-        at_rest = float(law(_kin(delta, 0.0, 0.5), GEOMETRY, SHARP)[0])
+        with_rate = float(law(contact_kinematics(delta, rate, 0.5), GEOMETRY, SHARP)[0])
+        at_rest = float(law(contact_kinematics(delta, 0.0, 0.5), GEOMETRY, SHARP)[0])
         np.testing.assert_allclose(with_rate - at_rest, 2e3 * step * rate, rtol=1e-9)
         np.testing.assert_allclose(
             at_rest, float(GEOMETRY.hertz_stiffness) * delta**1.5, rtol=SHARP_RTOL
@@ -375,15 +364,15 @@ def test_adams_impact_damping_step():
 def test_hybrid_tangential_force_opposes_sweep():
     law = Hybrid()
     sweep = [
-        float(law(_kin(2e-5, 0.0, 0.5, v), GEOMETRY, SMOOTHING)[1])
+        float(law(contact_kinematics(2e-5, 0.0, 0.5, v), GEOMETRY, SMOOTHING)[1])
         for v in (-1.0, 0.0, 1.0)
     ]
-    normal_scale = float(law(_kin(2e-5, 0.0, 0.5), GEOMETRY, SMOOTHING)[0])
+    normal_scale = float(law(contact_kinematics(2e-5, 0.0, 0.5), GEOMETRY, SMOOTHING)[0])
     assert sweep[0] > 0.0 > sweep[2]
     assert abs(sweep[1]) < 1e-12 * normal_scale  # symmetric arc
     np.testing.assert_allclose(sweep[0], -sweep[2], rtol=1e-9)
     elastic = Hybrid(restitution=1.0)
-    tangential = elastic(_kin(2e-5, 0.0, 0.5, 1.0), GEOMETRY, SMOOTHING)[1]
+    tangential = elastic(contact_kinematics(2e-5, 0.0, 0.5, 1.0), GEOMETRY, SMOOTHING)[1]
     assert abs(float(tangential)) < 1e-12 * normal_scale  # no damping, no drag
 
 

@@ -10,9 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from helpers import contact_kinematics
 from jaxclear.contact import (
     ContactGeometry,
-    ContactKinematics,
     ElasticFoundation,
     ElasticFoundationDiscrete,
     Hybrid,
@@ -31,21 +31,10 @@ FINAL_RTOL = 1e-3
 MIN_ERROR_RATIO = 3.0
 
 
-def _kin(delta, rate, impact, tangential=0.0):
-    """ContactKinematics from numbers or arrays (its fields are annotated as float arrays)."""
-    return ContactKinematics(
-        jnp.asarray(delta, dtype=float),
-        jnp.asarray(rate, dtype=float),
-        jnp.asarray(impact, dtype=float),
-        jnp.asarray(tangential, dtype=float),
-    )
-
-
-
 @eqx.filter_jit
 def _normal_forces(law, penetrations):
     def one(delta):
-        return law(_kin(delta, 0.0, 0.5), GEOMETRY, SMOOTHING)[0]
+        return law(contact_kinematics(delta, 0.0, 0.5), GEOMETRY, SMOOTHING)[0]
 
     return eqx.filter_vmap(one)(penetrations)
 

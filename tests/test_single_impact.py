@@ -13,9 +13,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.special import gamma
 
+from helpers import contact_kinematics
 from jaxclear.contact import (
     ContactGeometry,
-    ContactKinematics,
     Hertz,
     LankaraniNikravesh,
     Smoothing,
@@ -40,23 +40,12 @@ DEFAULT_SMOOTHING_ATOL = 1e-3
 ELASTIC_ATOL = 1e-7
 
 
-def _kin(delta, rate, impact, tangential=0.0):
-    """ContactKinematics from numbers or arrays (its fields are annotated as float arrays)."""
-    return ContactKinematics(
-        jnp.asarray(delta, dtype=float),
-        jnp.asarray(rate, dtype=float),
-        jnp.asarray(impact, dtype=float),
-        jnp.asarray(tangential, dtype=float),
-    )
-
-
-
 @eqx.filter_jit
 def _package_impact(law, smoothing):
     """Exit/entry speed ratio and contact duration (s) of the package's law."""
 
     def rhs(t, y, args):
-        kin = _kin(y[0], y[1], SPEED)
+        kin = contact_kinematics(y[0], y[1], SPEED)
         force = law(kin, GEOMETRY, smoothing)[0]
         return jnp.stack([y[1], -force / MASS])
 
