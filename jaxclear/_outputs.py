@@ -41,7 +41,7 @@ CLEARANCE_OUTPUTS = {
     "friction_force": ("N", "friction force"),
     "tangential_force": ("N", "tangential contact force"),
     "slip_velocity": ("m/s", "relative tangential (slip) velocity"),
-    "impact_velocity": ("m/s", "latched impact velocity (internal state)"),
+    "impact_velocity": ("m/s", "impact-velocity memory m = δ̇ + u (latched at contact onset)"),
     "friction_state": ("m", "friction-law internal state (LuGre bristle deflection z)"),
 }
 

@@ -14,7 +14,13 @@ from ._errors import AssemblyError, ModelError, SimulationError
 from ._solver import SolverConfig, solver_config
 from ._trajectory import INPUT_ERRORS, Trajectory
 from .dynamics._assembly import assemble_state, check_assembly
-from .dynamics._equations import evaluate, nonstiff_vector_field, stiff_vector_field, vector_field
+from .dynamics._equations import (
+    evaluate,
+    memory_decay_rates,
+    nonstiff_vector_field,
+    stiff_vector_field,
+    vector_field,
+)
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
@@ -23,6 +29,7 @@ ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly i
 _FULL = eqx.filter_jit(vector_field)
 _STIFF = eqx.filter_jit(stiff_vector_field)
 _NONSTIFF = eqx.filter_jit(nonstiff_vector_field)
+_DECAY = eqx.filter_jit(memory_decay_rates)
 
 
 def initial_state(mechanism, q0, qd0):
@@ -105,14 +112,16 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         terms = diffrax.ODETerm(_FULL)
     sol = diffrax.diffeqsolve(
         terms,
-        config.make_solver(num_explicit=2 * mechanism.num_coordinates),
+        config.make_solver(
+            num_explicit=2 * mechanism.num_coordinates, decay=_DECAY, memory_rows=mechanism.memory_rows
+        ),
         t0,
         t1,
         config.dt0,
         y0,
         args=mechanism,
         saveat=saveat,
-        stepsize_controller=config.make_controller(),
+        stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows),
         max_steps=config.max_steps,
         throw=False,
         progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),

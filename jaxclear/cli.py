@@ -91,7 +91,7 @@ def _solver_help() -> str:
 
     return (
         f"auto (imex with LuGre friction, else fast: measured fastest), a preset ({', '.join(PRESETS)}) "
-        f"or a diffrax method ({', '.join(METHODS)})"
+        f"or a method ({', '.join(METHODS)})"
     )
 
 

@@ -72,11 +72,18 @@ def test_smoothing_widths_converge_to_sharp_reference(sharp):
     assert devs[2] <= devs[1]  # ... where other regularisations (v_min band, force clamp) remain
 
 
+def orbit_distance(a, b):
+    """Max distance (m) between the B journal-centre orbits of two runs."""
+    return float(np.max(np.hypot(*(np.asarray(a.clearance["B"][k]) - np.asarray(b.clearance["B"][k]) for k in ("ecc_x", "ecc_y")))))
+
+
 def test_tolerance_convergence(sharp):
-    devs = [deviation(run(WIDTHS[-1], rtol), sharp) for rtol in (1e-6, 1e-8, 1e-11)]
-    print("max orbit deviation per rtol 1e-6, 1e-8, 1e-11 (µm):", [d * 1e6 for d in devs])
-    assert devs[0] > devs[1] > devs[2]
-    assert devs[2] < 2e-8
+    loose, medium, tight = (run(WIDTHS[-1], rtol) for rtol in (1e-6, 1e-8, 1e-11))
+    changes = [orbit_distance(loose, tight), orbit_distance(medium, tight)]
+    print("orbit change rtol 1e-6 -> 1e-11, 1e-8 -> 1e-11 (µm):", [d * 1e6 for d in changes])
+    print("deviation from the sharp reference at rtol 1e-11 (µm):", deviation(tight, sharp) * 1e6)
+    assert changes[0] > changes[1]  # tighter tolerances change the result less and less
+    assert deviation(tight, sharp) < 2e-8  # and the converged run sits on the sharp model
 
 
 def test_slider_and_torque_agree_with_reference(sharp):

@@ -8,8 +8,10 @@ positive definite Schur complement S = Φ_q M⁻¹ Φ_qᵀ (MODEL.md §5b):
 λ = S⁻¹ (Φ_q M⁻¹ Q − rhs), q̈ = M⁻¹ (Q − Φ_qᵀ λ).
 """
 
+import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
+import numpy as np
 from jaxtyping import Array, Float
 
 from ._batched import batched_force_and_cache, batched_state_rates, batched_stiff_rates, groups
@@ -134,3 +136,16 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
 def nonstiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """dy/dt minus its stiff part: the explicit part of an IMEX split."""
     return vector_field(t, y, mechanism) - stiff_vector_field(t, y, mechanism)
+
+
+def memory_decay_rates(t, y, mechanism) -> Float[Array, " N"]:
+    """ℓ: the diagonal decay rate −w(δ) k_m (1/s) of each impact-memory offset row, in the order of
+    ``np.flatnonzero(mechanism.memory_rows)``.
+
+    The stiff part is affine and diagonal in the internal states (tests/test_fast_paths.py checks
+    the contract), so one Jacobian–vector product along the memory rows gives the diagonal.
+    Used by ``jaxclear._lawson.LawsonTsit5``.
+    """
+    mask = jnp.asarray(mechanism.memory_rows, y.dtype)
+    _, rates = jax.jvp(lambda x: stiff_vector_field(t, x, mechanism), (y,), (mask,))
+    return rates[np.flatnonzero(mechanism.memory_rows)]

@@ -2,6 +2,7 @@
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 from .._checks import check_finite, check_shape
@@ -116,6 +117,16 @@ class Mechanism(eqx.Module):
             out[f.name] = slice(start, start + f.num_states)
             start += f.num_states
         return out
+
+    @property
+    def memory_rows(self):
+        """Boolean mask (state_size,) of the rows of y that hold an impact-memory offset u (a pure
+        decay in free flight; see ``dynamics._impact_memory``). NumPy, static."""
+        mask = np.zeros(self.state_size, dtype=bool)
+        for f in self.force_elements:
+            rows = getattr(f, "memory_state_rows", ())
+            mask[[self.state_slices[f.name].start + r for r in rows]] = True
+        return mask
 
     @property
     def state_size(self) -> int:
