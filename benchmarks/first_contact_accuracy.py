@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 DEFAULT_RUNS = (
-    "tsit5:1e-6,tsit5:1e-8,tsit5:1e-9,tsit5:1e-10,kencarp5:1e-6,kencarp5:1e-8,"
+    "lawson-tsit5:1e-6,tsit5:1e-6,tsit5:1e-8,tsit5:1e-9,tsit5:1e-10,kencarp5:1e-6,kencarp5:1e-8,"
     "kvaerno3:1e-6,kvaerno4:1e-6,kvaerno5:1e-5,kvaerno5:1e-6,kvaerno5:1e-7"
 )
 
