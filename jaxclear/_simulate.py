@@ -17,6 +17,7 @@ from .dynamics._assembly import assemble_state, check_assembly
 from .dynamics._equations import (
     evaluate,
     memory_decay_rates,
+    memory_offset_shift,
     nonstiff_vector_field,
     stiff_vector_field,
     vector_field,
@@ -110,6 +111,11 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         terms = diffrax.MultiTerm(diffrax.ODETerm(_NONSTIFF), diffrax.ODETerm(_STIFF))
     else:
         terms = diffrax.ODETerm(_FULL)
+    # Exponential methods integrate the impact memory in offset form u = m − δ̇ (a pure decay in
+    # free flight); states are converted at the ends, so y0, ys and y_final hold m as always.
+    offset = config.exponential and bool(np.any(mechanism.memory_rows))
+    solve_mechanism = mechanism.with_memory_offset() if offset else mechanism
+    y_start = y0 - memory_offset_shift(mechanism, y0) if offset else y0
     sol = diffrax.diffeqsolve(
         terms,
         config.make_solver(
@@ -118,15 +124,18 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         t0,
         t1,
         config.dt0,
-        y0,
-        args=mechanism,
+        y_start,
+        args=solve_mechanism,
         saveat=saveat,
-        stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows),
+        stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows if offset else None),
         max_steps=config.max_steps,
         throw=False,
         progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),
     )
-    ys = sol.ys[0]
+    ys, y_final = sol.ys[0], sol.ys[1][-1]
+    if offset:
+        ys = ys + jax.vmap(lambda y: memory_offset_shift(mechanism, y))(ys)
+        y_final = y_final + memory_offset_shift(mechanism, y_final)
     n = mechanism.num_coordinates
     out = jax.vmap(lambda t, y: _outputs(mechanism, t, y))(ts, ys)
     return Trajectory(
@@ -147,7 +156,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         result=sol.result,
         input_error=input_error,
         t_final=sol.ts[1][-1],
-        y_final=sol.ys[1][-1],
+        y_final=y_final,
         mechanism=mechanism,
     )
 

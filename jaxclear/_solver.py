@@ -43,12 +43,12 @@ class SolverConfig(eqx.Module):
             fusion emitters off), because the contact sequence is sensitive (MODEL.md §5b).
         newton_rtol, newton_atol: tolerances of the implicit stage equations (chord iteration).
             Loose values (≈√rtol) avoid step-size collapse at impacts (MODEL.md §5b).
-        memory_speed: reference speed of the impact-memory offsets u = m − δ̇, m/s: their rows are
-            controlled with absolute tolerance ``atol + rtol * memory_speed``. u is ~0 in free
-            flight and its error is an error in the latched impact speed, so it is measured
-            against a typical approach speed rather than against |u| (with ``atol`` alone the
-            offset rows set the step: Tsit5 took 7227/11093 steps on benchmark cases a/b instead
-            of 5833/7057, KenCarp5 18663 instead of 11218 on case c).
+        memory_speed: for exponential methods, which integrate the impact memory as the offset
+            u = m − δ̇: reference speed of those rows, m/s, controlled with absolute tolerance
+            ``atol + rtol * memory_speed``. u is ~0 in free flight and its error is an error in
+            the latched impact speed, so it is measured against a typical approach speed rather
+            than against |u| (with ``atol`` alone the offset rows set the step: Tsit5 on the
+            offset form took 7227/11093 steps on benchmark cases a/b instead of 5833/7057).
     """
 
     method: str = eqx.field(static=True, default="kvaerno5")
@@ -80,6 +80,10 @@ class SolverConfig(eqx.Module):
     @property
     def imex(self) -> bool:
         return self.method in IMEX
+
+    @property
+    def exponential(self) -> bool:
+        return self.method in EXPONENTIAL
 
     def replace(self, **changes) -> "SolverConfig":
         """Copy with some settings changed."""

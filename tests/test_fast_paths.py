@@ -84,10 +84,13 @@ def test_gauss_jordan_solve_matches_numpy():
                                    rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("offset", [False, True], ids=["memory", "memory-offset"])
 @pytest.mark.parametrize("friction", list(FRICTION_LAWS))
-def test_stiff_rates_are_affine_and_diagonal_in_the_internal_states(friction):
-    """The contract DiagonalNewton(affine=True) relies on, for every friction law with the memory."""
+def test_stiff_rates_are_affine_and_diagonal_in_the_internal_states(friction, offset):
+    """The contract DiagonalNewton(affine=True) and Lawson–Tsit5's decay rates rely on, for every
+    friction law with the memory in both forms."""
     mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction))
+    mech = mech.with_memory_offset(offset)
     n = 2 * mech.num_coordinates
     for _ in range(2):
         y = _perturbed_state(mech)

@@ -38,7 +38,8 @@ def _signature(element):
         static = eqx.partition(getattr(element, field, None), eqx.is_array)[1]
         static_leaves, treedef = jax.tree_util.tree_flatten(static)
         parts.append((treedef, tuple(static_leaves)))
-    key = (type(element), tuple(parts), tuple((x.shape, x.dtype) for x in leaves), element.num_states)
+    key = (type(element), tuple(parts), tuple((x.shape, x.dtype) for x in leaves), element.num_states,
+           getattr(element, "memory_offset", None))
     try:
         hash(key)
     except TypeError:

@@ -149,3 +149,19 @@ def memory_decay_rates(t, y, mechanism) -> Float[Array, " N"]:
     mask = jnp.asarray(mechanism.memory_rows, y.dtype)
     _, rates = jax.jvp(lambda x: stiff_vector_field(t, x, mechanism), (y,), (mask,))
     return rates[np.flatnonzero(mechanism.memory_rows)]
+
+
+def memory_offset_shift(mechanism, y) -> Float[Array, " N"]:
+    """δ̇ of each clearance joint on its memory row, zero elsewhere: a state converts between the
+    memory forms as y_offset = y_absolute − shift, y_absolute = y_offset + shift (q, q̇ and other
+    rows are the same in both, so ``y`` may be either)."""
+    q, qd, _ = mechanism.split_state(y)
+    shift = jnp.zeros_like(y)
+    slices = mechanism.state_slices
+    for e in mechanism.force_elements:
+        rows = getattr(e, "memory_state_rows", ())
+        if rows:
+            rate = e.kinematics(mechanism.index, q, qd)["penetration_rate"]
+            for r in rows:
+                shift = shift.at[slices[e.name].start + r].set(rate)
+    return shift

@@ -2,8 +2,7 @@
 
 A ``ClearanceJoint`` takes the place of an ideal ``RevoluteJoint``: instead of two constraint
 equations it adds two degrees of freedom and a contact force element. Its internal states (the
-impact-velocity memory, carried as the offset u = m − δ̇, and the friction law's states, e.g.
-LuGre z) live in the integrator state.
+impact-velocity memory m and the friction law's states, e.g. LuGre z) live in the integrator state.
 """
 
 import equinox as eqx
@@ -15,7 +14,7 @@ from .._checks import check_finite, check_positive, check_shape, is_concrete
 from .._errors import ModelError
 from .._smooth import safe_norm
 from ..contact._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing
-from ..dynamics._impact_memory import impact_velocity, memory, memory_offset_rate, memory_relaxation
+from ..dynamics._impact_memory import impact_velocity, memory, memory_offset_rate, memory_rate, memory_relaxation
 from ..dynamics._kinematics import dot2, point_position, point_velocity
 from ..friction._base import AbstractFrictionLaw
 from ._forces import AbstractForceElement
@@ -58,6 +57,9 @@ class ClearanceJoint(AbstractForceElement):
         friction_law: friction law (default: LuGre).
         smoothing: regularisation widths (``Smoothing``).
         initial_eccentricity: journal offset at assembly (global components), m; default centred.
+        memory_offset: carry the impact memory as u = m − δ̇ instead of m (static; set inside the
+            solve by ``lawson-tsit5`` through ``Mechanism.with_memory_offset``, see
+            ``dynamics._impact_memory``).
     """
 
     name: str = eqx.field(static=True)
@@ -70,6 +72,7 @@ class ClearanceJoint(AbstractForceElement):
     friction_law: AbstractFrictionLaw = eqx.field(default_factory=_default_friction)
     smoothing: Smoothing = eqx.field(default_factory=Smoothing)
     initial_eccentricity: Float[Array, "2"] = eqx.field(converter=_array, default=(0.0, 0.0))
+    memory_offset: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self):
         owner = f"ClearanceJoint {self.name!r}"
@@ -125,16 +128,17 @@ class ClearanceJoint(AbstractForceElement):
                 )
         return cls(joint.name, joint.body_i, joint.point_i, joint.body_j, joint.point_j, geometry=geometry, **kwargs)
 
-    # --- layout of the internal state: [memory offset u = m − δ̇, friction states...] -----------
+    # --- layout of the internal state: [memory m (or u = m − δ̇ if memory_offset), friction states]
     @property
     def num_states(self) -> int:
         return 1 + self.friction_law.num_states
 
-    memory_state_rows = (0,)  # which internal states are impact-memory offsets (Mechanism.memory_rows)
+    memory_state_rows = (0,)  # which internal states hold the impact memory (Mechanism.memory_rows)
 
     def initial_state(self, index, q, qd):
-        del index, q, qd  # u = 0: the memory starts at the initial δ̇
-        return jnp.concatenate([jnp.zeros((1,)), self.friction_law.initial_state()])
+        rate = self.kinematics(index, q, qd)["penetration_rate"]  # the memory starts at the initial δ̇
+        m0 = jnp.zeros_like(rate) if self.memory_offset else rate
+        return jnp.concatenate([jnp.reshape(m0, (1,)), self.friction_law.initial_state()])
 
     def assembly_constraint(self, index, q, t):
         """Assembly rows: journal centre at bearing centre + initial eccentricity."""
@@ -195,7 +199,7 @@ class ClearanceJoint(AbstractForceElement):
         kin = ContactKinematics(
             penetration=k["penetration"],
             penetration_rate=k["penetration_rate"],
-            impact_velocity=impact_velocity(memory(state[0], k["penetration_rate"]), self.smoothing),
+            impact_velocity=impact_velocity(memory(state[0], k["penetration_rate"], self.memory_offset), self.smoothing),
             tangential_rate=k["tangential_rate"],
         )
         normal, law_tangential = self.contact_law(kin, self.geometry, self.smoothing)
@@ -237,17 +241,19 @@ class ClearanceJoint(AbstractForceElement):
         accel = _point_acceleration(qj, qdj, qddj, self.journal_point) - _point_acceleration(
             qb, qdb, qddb, self.bearing_point
         )
-        u_dot = memory_offset_rate(
-            state[0],
-            k["penetration"],
-            k["eccentricity"],
-            self.geometry.clearance,
-            k["tangential_rate"],
-            dot2(k["normal"], accel),
-            self.smoothing,
-        )
+        normal_accel = dot2(k["normal"], accel)
+        c = self.geometry.clearance
+        if self.memory_offset:
+            m_dot = memory_offset_rate(
+                state[0], k["penetration"], k["eccentricity"], c, k["tangential_rate"], normal_accel, self.smoothing
+            )
+        else:
+            m_dot = memory_rate(
+                state[0], k["penetration"], k["penetration_rate"], k["eccentricity"], c, k["tangential_rate"],
+                normal_accel, self.smoothing,
+            )
         z_dot = self.friction_law.state_derivative(k["slip_velocity"], f["normal_force"], state[1:], self.smoothing)
-        return jnp.concatenate([jnp.reshape(u_dot, (1,)), jnp.reshape(z_dot, (-1,))])
+        return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
     def stiff_state_derivative(self, index, q, qd, t, state):
         """Stiff parts: memory relaxation k_m term and the friction law's stiff part (LuGre z).
@@ -260,9 +266,9 @@ class ClearanceJoint(AbstractForceElement):
     def local_stiff_state_derivative(self, qb, qdb, qj, qdj, state):
         """``stiff_state_derivative`` from the two bodies' coordinates and velocities."""
         k = self.local_kinematics(qb, qdb, qj, qdj)
-        u_dot = memory_relaxation(state[0], k["penetration"], self.smoothing)
+        m_dot = memory_relaxation(state[0], k["penetration"], k["penetration_rate"], self.smoothing, self.memory_offset)
         z_dot = self.friction_law.stiff_state_derivative(k["slip_velocity"], state[1:], self.smoothing)
-        return jnp.concatenate([jnp.reshape(u_dot, (1,)), jnp.reshape(z_dot, (-1,))])
+        return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
     def outputs(self, index, q, qd, qdd, t, state) -> dict:
         """Per-instant outputs: eccentricity components, penetration, forces, internal states."""
@@ -276,7 +282,7 @@ class ClearanceJoint(AbstractForceElement):
             friction_force=f["friction_force"],
             tangential_force=f["tangential_force"],
             slip_velocity=k["slip_velocity"],
-            impact_velocity=memory(state[0], k["penetration_rate"]),
+            impact_velocity=memory(state[0], k["penetration_rate"], self.memory_offset),
         )
         if self.friction_law.num_states:
             out["friction_state"] = state[1]

@@ -1,5 +1,7 @@
 """The Mechanism: bodies, ideal joints, a driver, force elements and clearance joints."""
 
+import dataclasses
+
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
@@ -120,8 +122,8 @@ class Mechanism(eqx.Module):
 
     @property
     def memory_rows(self):
-        """Boolean mask (state_size,) of the rows of y that hold an impact-memory offset u (a pure
-        decay in free flight; see ``dynamics._impact_memory``). NumPy, static."""
+        """Boolean mask (state_size,) of the rows of y that hold a clearance joint's impact-velocity
+        memory (m, or its offset u = m − δ̇ in ``with_memory_offset``). NumPy, static."""
         mask = np.zeros(self.state_size, dtype=bool)
         for f in self.force_elements:
             rows = getattr(f, "memory_state_rows", ())
@@ -154,6 +156,18 @@ class Mechanism(eqx.Module):
         n = self.num_coordinates
         states = {name: y[..., s] for name, s in self.state_slices.items()}
         return y[..., :n], y[..., n : 2 * n], states
+
+    def with_memory_offset(self, offset: bool = True) -> "Mechanism":
+        """Copy whose clearance joints carry the impact memory as u = m − δ̇ (``offset=True``) or as m.
+
+        The offset form is what ``lawson-tsit5`` integrates (``dynamics._impact_memory``); states
+        of the two forms convert with ``dynamics._equations.memory_offset_shift``.
+        """
+        joints = tuple(
+            dataclasses.replace(c, memory_offset=offset) if hasattr(c, "memory_offset") else c
+            for c in self.clearance_joints
+        )
+        return eqx.tree_at(lambda m: m.clearance_joints, self, joints)
 
     def replace_bodies(self, **changes):
         """Copy with some bodies replaced: ``mech.replace_bodies(crank=new_body)``."""
