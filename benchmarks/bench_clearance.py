@@ -1,7 +1,7 @@
 """Slider–crank with clearance joints (MODEL.md §6): jaxclear solvers against the SciPy reference.
 
 Usage:
-    python benchmarks/bench_clearance.py [--quick] [--cases a,b,c] [--solvers tsit5,kencarp5,kvaerno5]
+    python benchmarks/bench_clearance.py [--quick] [--cases a,b,c] [--solvers lawson-tsit5,tsit5,kencarp5,kvaerno5]
                                          [--repeats N] [--max-wall S] [--compile-method aot|first-call]
                                          [--no-scipy] [--scipy-method Radau] [--rhs-cost] [--agreement]
                                          [--pin-cpu K] [--compile-cache DIR] [--fast-compile]
@@ -355,7 +355,7 @@ def fmt_stats(r, joints):
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cases", default="a,b,c", help="comma list among a, b, c (default all)")
-    p.add_argument("--solvers", default="tsit5,kencarp5,kvaerno5", help="comma list of jaxclear methods")
+    p.add_argument("--solvers", default="lawson-tsit5,tsit5,kencarp5,kvaerno5", help="comma list of jaxclear methods")
     p.add_argument("--repeats", type=int, default=3, help="steady-state calls timed per solver (default 3)")
     p.add_argument("--quick", action="store_true", help="0.25 revolution instead of 2")
     p.add_argument("--revolutions", type=float, default=None, help="override the simulated revolutions")
