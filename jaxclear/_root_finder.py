@@ -10,10 +10,12 @@ the first iteration does exactly). One Jacobian-vector product with the internal
 as tangent gives that diagonal at the cost of one evaluation, instead of the dense Jacobian and
 LU factorisation of ``diffrax.VeryChord``; the iteration converges in two steps for this linear
 structure, or in one step when the start has its q, q̇ rows at their exact value (zero) and the
-rates are affine in the internal states (``affine=True``, what ``SolverConfig`` uses: measured on
-case c of benchmarks/bench_clearance.py, 64 → 51 µs per KenCarp5 step). With ``affine=False``
-convergence is tested as in ``VeryChord`` (a stiff part that breaks the assumptions is then
-reported as a failed solve, not silently accepted).
+rates are affine in the internal states (``affine=True``: measured on case c of
+benchmarks/bench_clearance.py, 64 → 51 µs per KenCarp5 step). ``SolverConfig`` now uses the same
+closed form without the root-finding loop (``jaxclear._imex.AffineKenCarp``, 38–42 µs per step);
+this root finder remains for diffrax's KenCarp when no stiff function is passed to
+``make_solver``. With ``affine=False`` convergence is tested as in ``VeryChord`` (a stiff part
+that breaks the assumptions is then reported as a failed solve, not silently accepted).
 """
 
 from collections.abc import Callable

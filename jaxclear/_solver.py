@@ -10,6 +10,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ._imex import AffineKenCarp
 from ._lawson import LawsonTsit5
 from ._root_finder import DiagonalNewton
 
@@ -89,16 +90,23 @@ class SolverConfig(eqx.Module):
         """Copy with some settings changed."""
         return dataclasses.replace(self, **changes)
 
-    def make_solver(self, num_explicit: int | None = None, decay=None, memory_rows=None):
-        """The diffrax solver. ``num_explicit``: for IMEX methods, the number of leading state
-        components (q, q̇) that the stiff part leaves alone; their stage equations are then solved
-        by ``DiagonalNewton`` (no dense Jacobian), otherwise by ``diffrax.VeryChord``.
+    def make_solver(self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None):
+        """The diffrax solver.
+
+        ``num_explicit``: for IMEX methods, the number of leading state components (q, q̇) that the
+        stiff part leaves alone. With ``stiff`` (the stiff vector field, affine and diagonal in the
+        other rows) too, the result is ``AffineKenCarp`` (closed-form stage solves; its terms are the
+        full vector field); with ``num_explicit`` alone, diffrax's KenCarp whose stage equations
+        ``DiagonalNewton`` solves (terms: a ``MultiTerm`` of the non-stiff and stiff parts);
+        otherwise ``diffrax.VeryChord``.
         ``decay``, ``memory_rows``: for exponential methods, ``decay(t, y, args)``, the diagonal
         decay rates of the rows marked in the boolean mask ``memory_rows``."""
         if self.method in EXPONENTIAL:
             if decay is None or memory_rows is None:
                 raise ValueError(f"solver method {self.method!r} needs decay= and memory_rows=.")
             return EXPONENTIAL[self.method](decay, tuple(int(i) for i in np.flatnonzero(memory_rows)))
+        if self.imex and num_explicit is not None and stiff is not None:
+            return AffineKenCarp(stiff, num_explicit, int(self.method[-1]))
         if self.imex and num_explicit is not None:
             root = DiagonalNewton(self.newton_rtol, self.newton_atol, num_explicit, affine=True)
             return IMEX[self.method](root_finder=root)
@@ -150,7 +158,8 @@ def recommended_solver(mechanism) -> SolverConfig:
     Measured on the benchmark slider–crank (benchmarks/bench_clearance.py and the default
     ``jaxclear run``, 2 revolutions at 5000 rpm, rtol 1e-6, one core): with LuGre the bristle state
     makes Tsit5 take ~5× more steps (three joints, hybrid law: Tsit5 run 1.52 s / 48 011 steps,
-    KenCarp5 with ``DiagonalNewton`` 0.77 s / 9 424 steps, Kvaerno5 3.3 s); without internal
+    KenCarp5 with ``DiagonalNewton`` 0.77 s / 9 424 steps, Kvaerno5 3.3 s; KenCarp5 with the
+    closed-form stage solves of ``AffineKenCarp`` then took 0.477 s / 6 773 steps); without internal
     friction states Tsit5 is the fastest (ideal joints, Coulomb-type friction).
     """
     stiff = any(getattr(getattr(e, "friction_law", None), "num_states", 0) > 0 for e in mechanism.force_elements)

@@ -1,5 +1,6 @@
 """The speed-ups must not change the model: batched clearance joints, the Gauss–Jordan Schur solve,
-and the IMEX stage solver (``DiagonalNewton``) with its contract on the stiff rates."""
+and the IMEX stage solvers (``DiagonalNewton``, ``AffineKenCarp``) with their contract on the stiff
+rates."""
 
 import jax
 import jax.numpy as jnp
@@ -16,6 +17,7 @@ from jaxclear.friction import FRICTION_LAWS, LuGre, friction_law_from_name
 from jaxclear.mechanisms import slider_crank
 
 RNG = np.random.default_rng(7)
+Z_DENSE_TOLERANCE = 3e-10  # m, LuGre z through KenCarp5's dense output (see its test)
 
 
 def _perturbed_state(mech, scale=2e-4):
@@ -143,8 +145,8 @@ def test_diagonal_newton_general_mode_is_safe_on_coupled_rows():
 @pytest.fixture(scope="module")
 def lugre_runs():
     """B joint with LuGre over the first 0.5 ms (first contact, with a stick phase), IMEX with
-    DiagonalNewton vs Dopri8. Tight tolerances: at rtol 1e-6 both explicit and IMEX solvers miss the
-    stick phase (see tests/test_solver_accuracy.py)."""
+    closed-form stage solves (AffineKenCarp) vs Dopri8. Tight tolerances: at rtol 1e-6 both
+    explicit and IMEX solvers miss the stick phase (see tests/test_solver_accuracy.py)."""
     mech = slider_crank(clearance_joints="B", clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
                         friction_law=LuGre())
     ts = np.linspace(0.0, 0.5e-3, 51)
@@ -153,14 +155,18 @@ def lugre_runs():
     return imex, ref
 
 
-def test_imex_with_diagonal_newton_matches_explicit_reference(lugre_runs):
+def test_imex_matches_explicit_reference(lugre_runs):
     imex, ref = lugre_runs
     assert imex.stats()["succeeded"] and ref.stats()["succeeded"]
     ecc = lambda tr: np.stack([np.asarray(tr.clearance["B"][k]) for k in ("ecc_x", "ecc_y")], -1)  # noqa: E731
     assert np.max(np.abs(np.asarray(ref.clearance["B"]["normal_force"]))) > 100.0  # contact happened
     np.testing.assert_allclose(ecc(imex), ecc(ref), atol=1e-9)  # m, of a 5e-4 m clearance
+    # z (~5e-7 m) at the saved times comes from KenCarp5's dense output, a polynomial through a
+    # step in which z may relax at h·σ0|v|/g ≫ 1: measured max differences 1.4e-10 m (closed-form
+    # stage solves) and < 1e-10 m (diffrax's KenCarp5 + DiagonalNewton), from step sequences that
+    # differ at rounding level.
     np.testing.assert_allclose(np.asarray(imex.clearance["B"]["friction_state"]),
-                               np.asarray(ref.clearance["B"]["friction_state"]), atol=1e-10)  # of 1e-6 m
+                               np.asarray(ref.clearance["B"]["friction_state"]), atol=Z_DENSE_TOLERANCE)
 
 
 def test_auto_solver_choice():

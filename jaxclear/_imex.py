@@ -1,0 +1,145 @@
+"""KenCarp3/4/5 for an affine diagonal stiff part, with closed-form stage solves: custom diffrax solvers.
+
+The IMEX split of jaxclear (``dynamics._equations``) has a stiff part that is zero on the q, q̇ rows
+and, on the internal-state rows (impact memory, LuGre z), affine and diagonal in those states with
+coefficients that depend on q and q̇ only: f_I(y) = a(q, q̇) + ℓ(q, q̇) ∘ s. That is the contract
+``tests/test_fast_paths.py`` checks for every friction law. Each implicit stage equation of an
+ESDIRK/IMEX method,
+
+    Y_i = P_i + h γ f_I(Y_i),    P_i = y0 + h Σ_{j<i} (a^E_ij f^E_j + a^I_ij f^I_j),
+
+then has its q, q̇ rows equal to those of P_i and its internal rows in closed form,
+
+    s_i = (P_i,s + h γ a) / (1 − h γ ℓ),   with a, ℓ from one evaluation of f_I at P_i (primal and
+                                          one Jacobian–vector product along the internal rows).
+
+This is what ``DiagonalNewton(affine=True)`` computes inside diffrax's ``KenCarp5`` through
+optimistix's root-finding loop; done directly, a stage costs one stiff evaluation (with its JVP)
+and one full right-hand side (f^E = f − f^I), and the stages run in one ``fori_loop`` so the vector
+field is compiled once. Same tableaus (Kennedy & Carpenter 2003: ARK3(2)4L[2]SA, ARK4(3)6L[2]SA,
+ARK5(4)8L[2]SA, taken from diffrax's ``KenCarp3/4/5``), same error estimates and dense output: a
+step agrees with diffrax's KenCarp + ``DiagonalNewton(affine=True)`` to rounding
+(tests/test_imex_affine.py).
+
+Reference: C. A. Kennedy, M. H. Carpenter, "Additive Runge–Kutta schemes for convection–diffusion–
+reaction equations", Appl. Numer. Math. 44 (2003) 139–181.
+"""
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import diffrax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+class _Tableau:
+    """Explicit and implicit coefficients of one diffrax KenCarp method as full NumPy matrices."""
+
+    def __init__(self, method):
+        explicit, implicit = method.tableau.tableaus
+        self.stages = len(explicit.a_lower) + 1
+        self.gamma = float(implicit.a_diagonal[1])
+        self.c = np.concatenate([[0.0], np.asarray(explicit.c)])
+        self.a_explicit, self.a_implicit = (self._full(t) for t in (explicit, implicit))
+        self.b, self.b_error = np.asarray(explicit.b_sol), np.asarray(explicit.b_error)
+        # one set of weights for both parts (checked), so y1 = y0 + Σ b_j (k^E_j + k^I_j)
+        assert np.allclose(self.b, implicit.b_sol) and np.allclose(self.b_error, implicit.b_error)
+        assert implicit.a_diagonal[0] == 0 and np.all(implicit.a_diagonal[1:] == self.gamma)
+        self.order = method().order(None)
+        self.interpolation = method.interpolation_cls
+
+    def _full(self, tableau):
+        a = np.zeros((self.stages, self.stages))
+        for i, row in enumerate(tableau.a_lower, start=1):
+            a[i, : len(row)] = row
+        return a
+
+
+TABLEAUS = {3: _Tableau(diffrax.KenCarp3), 4: _Tableau(diffrax.KenCarp4), 5: _Tableau(diffrax.KenCarp5)}
+
+
+class _AffineKenCarpInterpolation(diffrax.AbstractLocalInterpolation):
+    """diffrax's KenCarp dense output for the method's ``variant`` (3, 4 or 5)."""
+
+    t0: jax.Array
+    t1: jax.Array
+    inner: diffrax.AbstractLocalInterpolation
+
+    def __init__(self, *, t0, t1, y0, y1, k, variant):
+        self.t0, self.t1 = t0, t1
+        self.inner = TABLEAUS[variant].interpolation(t0=t0, t1=t1, y0=y0, y1=y1, k=k)
+
+    def evaluate(self, t0, t1=None, left=True):
+        return self.inner.evaluate(t0, t1, left)
+
+
+class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
+    """KenCarp3/4/5 with closed-form stage solves for an affine diagonal stiff part.
+
+    Attributes:
+        stiff: ``stiff(t, y, args) -> f_I`` (same shape as y): zero on the first ``num_explicit``
+            rows, affine and diagonal in the others (not checked here; see the module docstring).
+        num_explicit: number of leading rows (q, q̇) that the stiff part leaves alone.
+        variant: 3, 4 or 5 (KenCarp3, KenCarp4, KenCarp5).
+
+    ``terms`` is the full vector field f = f^E + f^I (an ``ODETerm``); the state a 1-D array.
+    """
+
+    stiff: Callable = eqx.field(static=True)
+    num_explicit: int = eqx.field(static=True)
+    variant: int = eqx.field(static=True, default=5)
+    term_structure: ClassVar = diffrax.AbstractTerm
+    interpolation_cls: ClassVar = _AffineKenCarpInterpolation
+
+    def order(self, terms):
+        return TABLEAUS[self.variant].order
+
+    def init(self, terms, t0, t1, y0, args):
+        return None
+
+    def func(self, terms, t0, y0, args):
+        return terms.vf(t0, y0, args)
+
+    def _stiff_affine(self, t, y_partial, args):
+        """(a, ℓ): f_I at ``y_partial`` with the internal rows zeroed, and its diagonal slope."""
+        rows = jnp.arange(y_partial.shape[0]) >= self.num_explicit
+        indicator = rows.astype(y_partial.dtype)
+        base = jnp.where(rows, 0.0, y_partial)
+        return jax.jvp(lambda y: self.stiff(t, y, args), (base,), (indicator,))
+
+    def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
+        del solver_state, made_jump
+        tab = TABLEAUS[self.variant]
+        h = t1 - t0
+        dtype = y0.dtype
+        a_e, a_i, c = (jnp.asarray(x, dtype) for x in (tab.a_explicit, tab.a_implicit, tab.c))
+        n = y0.shape[0]
+        implicit_rows = jnp.arange(n) >= self.num_explicit
+
+        def stage_value(i, ks_e, ks_i):
+            """Stage i's value and f_I there, from the earlier stages (closed-form implicit solve)."""
+            partial = y0 + jnp.sum(a_e[i][:, None] * ks_e + a_i[i][:, None] * ks_i, axis=0)
+            gamma_h = jnp.where(i == 0, 0.0, tab.gamma) * h  # stage 1 is explicit (a^I_11 = 0)
+            a, slope = self._stiff_affine(t0 + c[i] * h, partial, args)
+            internal = (partial + gamma_h * a) / (1.0 - gamma_h * slope)
+            y_stage = jnp.where(implicit_rows, internal, partial)
+            f_implicit = jnp.where(implicit_rows, a + slope * y_stage, 0.0)
+            return y_stage, f_implicit
+
+        def stage(i, carry):
+            ks_e, ks_i = carry
+            y_stage, f_implicit = stage_value(i, ks_e, ks_i)
+            f_explicit = terms.vf(t0 + c[i] * h, y_stage, args) - f_implicit
+            return ks_e.at[i].set(h * f_explicit), ks_i.at[i].set(h * f_implicit)
+
+        zeros = jnp.zeros((tab.stages, n), dtype)
+        ks_e, ks_i = jax.lax.fori_loop(0, tab.stages, stage, (zeros, zeros))
+        b, b_error = jnp.asarray(tab.b, dtype), jnp.asarray(tab.b_error, dtype)
+        k = ks_e + ks_i
+        y1 = y0 + jnp.sum(b[:, None] * k, axis=0)
+        y_error = jnp.sum(b_error[:, None] * k, axis=0)
+        dense_info = dict(y0=y0, y1=y1, k=(ks_e, ks_i), variant=self.variant)
+        return y1, y_error, dense_info, None, diffrax.RESULTS.successful
