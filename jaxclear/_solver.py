@@ -48,8 +48,8 @@ class SolverConfig(eqx.Module):
             u = m − δ̇: reference speed of those rows, m/s, controlled with absolute tolerance
             ``atol + rtol * memory_speed``. u is ~0 in free flight and its error is an error in
             the latched impact speed, so it is measured against a typical approach speed rather
-            than against |u| (with ``atol`` alone the offset rows set the step: Tsit5 on the
-            offset form took 7227/11093 steps on benchmark cases a/b instead of 5833/7057).
+            than against |u| (with ``atol`` alone the offset rows, not the motion, set the step
+            size in contact).
     """
 
     method: str = eqx.field(static=True, default="kvaerno5")

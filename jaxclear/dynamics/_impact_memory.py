@@ -22,9 +22,10 @@ Two state variables for the same model:
   h < ~3/k_m; in contact (w = 0) u̇ = −dδ̇/dt keeps m frozen. The two forms differ only where
   (tᵀė)²/e is floored (e < 1e-3 c, far from the wall, where w − 1 = 0 in the offset form).
   The offset form is not the default because in contact its rows couple to the contact force
-  through m (∂u̇/∂u = −∂δ̈/∂m, large for grazing contacts with small m): Kvaerno5's chord
-  iteration then stalled on the three-joint benchmark (case b, 1e6 rejected steps at 0.82 ms),
-  where the absolute form, in which ṁ = 0 in contact, ran through.
+  through m (∂u̇/∂u = −∂δ̈/∂m, large for grazing contacts with small m): with the offset form as
+  the state of every solver (commit d5307fd), Kvaerno5's chord iteration stalled on the three-joint
+  benchmark (case b of benchmarks/bench_clearance.py --first-contact --fast-compile: NaN orbits;
+  1e6 rejected steps at 0.82 ms), where the absolute form, in which ṁ = 0 in contact, ran through.
 
 This module is isolated so that the reconstruction can be swapped (e.g. for event-based latching).
 """
