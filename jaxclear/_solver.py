@@ -17,6 +17,7 @@ from ._root_finder import DiagonalNewton
 EXPLICIT = {"tsit5": diffrax.Tsit5, "dopri5": diffrax.Dopri5, "dopri8": diffrax.Dopri8, "bosh3": diffrax.Bosh3}
 IMPLICIT = {"kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4, "kvaerno5": diffrax.Kvaerno5}
 IMEX = {"kencarp3": diffrax.KenCarp3, "kencarp4": diffrax.KenCarp4, "kencarp5": diffrax.KenCarp5}
+IMEX_ORDER = {"kencarp3": 3, "kencarp4": 4, "kencarp5": 5}  # AffineKenCarp variant of each
 EXPONENTIAL = {"lawson-tsit5": LawsonTsit5}
 METHODS = tuple(EXPLICIT) + tuple(EXPONENTIAL) + tuple(IMPLICIT) + tuple(IMEX)
 
@@ -106,7 +107,7 @@ class SolverConfig(eqx.Module):
                 raise ValueError(f"solver method {self.method!r} needs decay= and memory_rows=.")
             return EXPONENTIAL[self.method](decay, tuple(int(i) for i in np.flatnonzero(memory_rows)))
         if self.imex and num_explicit is not None and stiff is not None:
-            return AffineKenCarp(stiff, num_explicit, int(self.method[-1]))
+            return AffineKenCarp(stiff, num_explicit, IMEX_ORDER[self.method])
         if self.imex and num_explicit is not None:
             root = DiagonalNewton(self.newton_rtol, self.newton_atol, num_explicit, affine=True)
             return IMEX[self.method](root_finder=root)
