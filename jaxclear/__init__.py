@@ -25,6 +25,7 @@ from .model import AbstractJoint as AbstractJoint  # noqa: E402
 from .model import AppliedForce as AppliedForce  # noqa: E402
 from .model import AppliedTorque as AppliedTorque  # noqa: E402
 from .model import Body as Body  # noqa: E402
+from .model import ClearanceJoint as ClearanceJoint  # noqa: E402
 from .model import ConstantSpeedDriver as ConstantSpeedDriver  # noqa: E402
 from .model import FunctionDriver as FunctionDriver  # noqa: E402
 from .model import Mechanism as Mechanism  # noqa: E402

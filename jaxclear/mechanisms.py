@@ -3,8 +3,8 @@
 import jax.numpy as jnp
 
 from ._errors import ModelError
-from .model._clearance import ClearanceJoint
 from .model._body import Body
+from .model._clearance import ClearanceJoint
 from .model._joints import ConstantSpeedDriver, RevoluteJoint, TranslationalJoint
 from .model._mechanism import Mechanism
 
@@ -51,7 +51,9 @@ def slider_crank(
             per-joint options.
         **clearance_options: options shared by every clearance joint, passed to
             ``ClearanceJoint.replacing``: ``clearance`` (m, default 0.5 mm with R_B = 10 mm),
-            ``geometry``, ``contact_law``, ``friction_law``, ``smoothing``, ``initial_eccentricity``.
+            ``journal_body`` (the body carrying the pin; default the joint's second body, e.g.
+            ``"slider"`` at B), ``geometry``, ``contact_law``, ``friction_law``, ``smoothing``,
+            ``initial_eccentricity``.
 
     Returns:
         The ``Mechanism`` with bodies ``crank``, ``rod``, ``slider``; ideal joints ``O``, ``A``,
@@ -153,12 +155,19 @@ def four_bar(
     )
 
 
+CLEARANCE_OPTIONS = frozenset(
+    {"clearance", "journal_body", "geometry", "contact_law", "friction_law", "smoothing", "initial_eccentricity"}
+)
+"""Keyword arguments of ``ClearanceJoint.replacing`` accepted as shared or per-joint options."""
+
+
 def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tuple:
     """Clearance joints replacing some of the ideal revolute joints ``revolute`` (name → joint).
 
     Args:
         revolute: the mechanism's ideal revolute joints by name.
-        spec: names (sequence or comma-separated string) or ``{name: options}``.
+        spec: names (sequence or comma-separated string) or ``{name: options}`` (per-joint
+            options override ``shared``; e.g. ``{"B": {"journal_body": "rod"}}``).
         shared: options common to all (``ClearanceJoint.replacing`` keyword arguments).
         owner: mechanism name for error messages.
     """
@@ -171,10 +180,12 @@ def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tup
         raise ModelError(
             f"{owner}: clearance joints must be among {', '.join(revolute)}; got {sorted(unknown)}."
         )
-    allowed = {"clearance", "geometry", "contact_law", "friction_law", "smoothing", "initial_eccentricity"}
-    bad = set(shared) - allowed
-    if bad:
-        raise TypeError(f"{owner}: unknown option(s) {sorted(bad)}; clearance options are {sorted(allowed)}.")
+    for where, options in [("", shared)] + [(f" of joint {name!r}", spec[name] or {}) for name in spec]:
+        bad = set(options) - CLEARANCE_OPTIONS
+        if bad:
+            raise TypeError(
+                f"{owner}: unknown option(s){where} {sorted(bad)}; clearance options are {sorted(CLEARANCE_OPTIONS)}."
+            )
     if "clearance" not in shared and "geometry" not in shared:
         shared = {**shared, "clearance": 5e-4}
     return tuple(

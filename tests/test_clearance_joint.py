@@ -17,7 +17,7 @@ from jaxclear.analysis import drive_work, kinetic_energy
 from jaxclear.contact import ContactGeometry, Hybrid, LankaraniNikravesh, Smoothing
 from jaxclear.friction import LuGre, NoFriction
 from jaxclear.mechanisms import slider_crank
-from jaxclear.model._clearance import ClearanceJoint
+from jaxclear import ClearanceJoint
 
 RPM = 5000.0
 OMEGA = RPM * 2 * np.pi / 60
@@ -227,3 +227,49 @@ def test_clearance_joint_outputs_and_tree_at():
     leaf = eqx.tree_at(lambda m: m.clearance_joints[0].geometry.journal_radius, mech, 0.0099)
     assert float(leaf.clearance_joints[0].geometry.clearance) == pytest.approx(1e-4)
     assert mech.degrees_of_freedom == 2
+
+
+# --- which body carries the pin ----------------------------------------------------------------------
+SWAP_HORIZON = 0.05 * PERIOD  # contains the first impact at B (≈75 µs) and the contact phase after it
+SWAP_ECCENTRICITY_TOL = 1e-9  # m: the two descriptions differ only in rounding (clearance 5e-4 m)
+SWAP_FORCE_REL_TOL = 1e-6  # of the peak normal force, same reason
+
+
+def test_journal_body_choice_mirrors_the_joint():
+    """Pin on the rod at B instead of on the slider: the same physical joint seen from the other side.
+
+    With a point contact law and no friction the force acts along the line of centres, so moving
+    the pin to the other body changes only the sign of the eccentricity vector; motion, penetration
+    and normal force are the same at the same instant.
+    """
+    ts = jnp.linspace(0.0, SWAP_HORIZON, NUM_POINTS)
+    runs = {}
+    for journal in ("slider", "rod"):
+        mech = slider_crank(
+            rpm=RPM,
+            clearance_joints={"B": {"journal_body": journal}},
+            clearance=5e-4,
+            contact_law=LankaraniNikravesh(stiffness=HERTZ_K, restitution=0.9),
+            friction_law=NoFriction(),
+        )
+        joint = mech.clearance_joints[0]
+        assert joint.journal_body == journal
+        assert joint.bearing_body == ({"slider", "rod"} - {journal}).pop()
+        runs[journal] = jaxclear.simulate(mech, SWAP_HORIZON, ts=ts, solver=SOLVER)
+    default, swapped = runs["slider"].clearance["B"], runs["rod"].clearance["B"]
+    assert np.max(np.asarray(default["penetration"])) > 0, "the window must contain an impact"
+    for key in ("ecc_x", "ecc_y"):
+        np.testing.assert_allclose(swapped[key], -np.asarray(default[key]), rtol=0, atol=SWAP_ECCENTRICITY_TOL)
+    peak = float(np.max(np.asarray(default["normal_force"])))
+    np.testing.assert_allclose(swapped["normal_force"], default["normal_force"], rtol=0, atol=SWAP_FORCE_REL_TOL * peak)
+    np.testing.assert_allclose(runs["rod"].q, runs["slider"].q, rtol=0, atol=SWAP_ECCENTRICITY_TOL)
+
+
+def test_bad_journal_body():
+    with pytest.raises(jaxclear.ModelError, match=r"journal_body='crank'.*'rod' or 'slider'"):
+        ClearanceJoint.replacing(_revolute(), journal_body="crank")
+    with pytest.raises(jaxclear.ModelError, match="journal_body"):
+        slider_crank(clearance_joints={"B": {"journal_body": "crank"}})
+    with pytest.raises(TypeError, match="unknown option"):
+        slider_crank(clearance_joints={"B": {"journal": "rod"}})
+    assert jaxclear.ClearanceJoint is ClearanceJoint

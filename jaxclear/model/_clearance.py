@@ -108,25 +108,48 @@ class ClearanceJoint(AbstractForceElement):
                 raise ModelError(f"{owner}: initial_eccentricity lies outside the clearance circle.")
 
     @classmethod
-    def replacing(cls, joint, clearance: float | None = None, **kwargs) -> "ClearanceJoint":
-        """A clearance joint at the place of an ideal ``RevoluteJoint`` (bearing on its body_i).
+    def replacing(
+        cls, joint, clearance: float | None = None, journal_body: str | None = None, **kwargs
+    ) -> "ClearanceJoint":
+        """A clearance joint at the place of an ideal ``RevoluteJoint``.
 
         Args:
             joint: the ``RevoluteJoint`` to replace (name, bodies and points are taken from it).
             clearance: radial clearance c, m; sets the journal radius to R_B − c (R_B from
                 ``geometry`` or 10 mm).
+            journal_body: which of the joint's two bodies carries the pin (journal); the other
+                carries the hole (bearing). Default ``joint.body_j`` (bearing on ``joint.body_i``).
             **kwargs: other ``ClearanceJoint`` fields (geometry, contact_law, friction_law, ...).
+
+        Returns:
+            The clearance joint, named like ``joint``.
+
+        Raises:
+            ModelError: ``journal_body`` is not one of the joint's two bodies, or ``clearance`` is
+                not positive and smaller than the bearing radius.
         """
+        owner = f"ClearanceJoint {joint.name!r}"
+        if journal_body is None:
+            journal_body = joint.body_j
+        if journal_body not in (joint.body_i, joint.body_j):
+            raise ModelError(
+                f"{owner}: journal_body={journal_body!r} is not a body of joint {joint.name!r}; "
+                f"choose {joint.body_i!r} or {joint.body_j!r}."
+            )
         geometry = kwargs.pop("geometry", None) or ContactGeometry(0.01, 0.0095)
         if clearance is not None:
             if is_concrete(clearance) and not float(clearance) > 0:
-                raise ModelError(f"ClearanceJoint {joint.name!r}: clearance must be > 0 m, got {clearance}.")
+                raise ModelError(f"{owner}: clearance must be > 0 m, got {clearance}.")
             geometry = eqx.tree_at(lambda g: g.journal_radius, geometry, geometry.bearing_radius - clearance)
             if is_concrete(geometry.journal_radius) and not float(geometry.journal_radius) > 0:
-                raise ModelError(
-                    f"ClearanceJoint {joint.name!r}: clearance {clearance} m is not smaller than the bearing radius."
-                )
-        return cls(joint.name, joint.body_i, joint.point_i, joint.body_j, joint.point_j, geometry=geometry, **kwargs)
+                raise ModelError(f"{owner}: clearance {clearance} m is not smaller than the bearing radius.")
+        if journal_body == joint.body_j:
+            bearing = (joint.body_i, joint.point_i)
+            journal = (joint.body_j, joint.point_j)
+        else:
+            bearing = (joint.body_j, joint.point_j)
+            journal = (joint.body_i, joint.point_i)
+        return cls(joint.name, *bearing, *journal, geometry=geometry, **kwargs)
 
     # --- layout of the internal state: [memory m (or u = m − δ̇ if memory_offset), friction states]
     @property
