@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model._joints import RevoluteJoint, TranslationalJoint
+from .model import RevoluteJoint, TranslationalJoint
 
 CSV_NAME = "results.csv"
 NPZ_NAME = "results.npz"
@@ -79,8 +79,9 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     """Named output columns of a single (unbatched) trajectory, in file order.
 
     Columns: ``t``; for a driven mechanism ``<body>_angle`` (deg) and ``<body>_torque`` (N m) of the
-    driven body (``crank_angle``, ``crank_torque`` for the slider–crank); for a body named
-    ``slider``: ``slider_x``, ``slider_v``, ``slider_a``; for every ideal revolute joint the force
+    driven body (``crank_angle``, ``crank_torque`` for the slider–crank); for the benchmark
+    slider–crank (``is_slider_crank``) ``slider_x``, ``slider_v``, ``slider_a``, for any other
+    mechanism every body's ``body_columns``; for every ideal revolute joint the force
     that its body_j exerts on its body_i, ``<joint>_Fx``, ``<joint>_Fy`` (N); for every ideal
     translational joint the moment and normal force the guide exerts on the slider,
     ``<joint>_moment`` (N m) and ``<joint>_normal`` (N); per clearance joint, in the mechanism's
@@ -94,6 +95,7 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     if t.ndim != 1:
         raise ValueError(f"result_columns needs one trajectory, got a batch (t has shape {t.shape}); index it first.")
     mech = traj.mechanism
+    benchmark = is_slider_crank(mech)
     cols = [Column("t", "s", "time", t)]
     if mech.driver is not None:
         body = mech.driver.body
@@ -105,7 +107,9 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
                 driven_angle_deg(traj),
             )
         )
-    if "slider" in mech.body_names:
+    if not benchmark:
+        cols += body_columns(traj)
+    if benchmark:
         cols += [
             Column("slider_x", "m", "slider position along the guide (x)", np.asarray(traj.coordinates("slider"))[:, 0]),
             Column("slider_v", "m/s", "slider velocity (x)", np.asarray(traj.velocities("slider"))[:, 0]),
@@ -188,6 +192,94 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     if dupes:
         raise ValueError(f"output column names collide: {dupes}; rename the joints or bodies.")
     return cols
+
+
+BODY_OUTPUTS = (
+    ("x", 0, "q", "m", "x of the centre of mass"),
+    ("y", 1, "q", "m", "y of the centre of mass"),
+    ("phi", 2, "q", "rad", "angle of the body frame to global x"),
+    ("vx", 0, "qd", "m/s", "velocity of the centre of mass, x"),
+    ("vy", 1, "qd", "m/s", "velocity of the centre of mass, y"),
+    ("omega", 2, "qd", "rad/s", "angular velocity"),
+    ("ax", 0, "qdd", "m/s^2", "acceleration of the centre of mass, x"),
+    ("ay", 1, "qdd", "m/s^2", "acceleration of the centre of mass, y"),
+    ("alpha", 2, "qdd", "rad/s^2", "angular acceleration"),
+)
+"""Per-body columns ``<body>_<name>`` of a general mechanism: (name, coordinate, array, unit, description)."""
+
+
+def is_slider_crank(mechanism) -> bool:
+    """Whether ``mechanism`` is the benchmark slider–crank (bodies ``crank``, ``rod``, ``slider``),
+    whose results keep their established columns ``slider_x``, ``slider_v``, ``slider_a``."""
+    return tuple(mechanism.body_names) == ("crank", "rod", "slider")
+
+
+def body_columns(traj) -> list[Column]:
+    """Position, velocity and acceleration of every body's centre of mass and frame (``BODY_OUTPUTS``)."""
+    cols = []
+    for body in traj.mechanism.body_names:
+        i = traj.mechanism.index(body)
+        for name, k, array, unit, description in BODY_OUTPUTS:
+            values = np.asarray(getattr(traj, array))[:, 3 * i + k]
+            cols.append(Column(f"{body}_{name}", unit, f"{description} of body {body!r}", values))
+    return cols
+
+
+PER_INSTANT = (
+    "t", "q", "qd", "qdd", "internal_state", "multipliers", "input_torque", "reactions",
+    "constraint_violation", "velocity_violation", "clearance",
+)
+"""``Trajectory`` fields with one entry per saved instant (as in ``Trajectory.truncated``)."""
+
+
+def _select(traj, keep: np.ndarray):
+    """The trajectory at the saved instants where ``keep`` (boolean, (N,)) is true."""
+    import jax
+
+    index = np.flatnonzero(keep)
+    changes = {name: jax.tree_util.tree_map(lambda x: x[index], getattr(traj, name)) for name in PER_INSTANT}
+    return dataclasses.replace(traj, **changes)
+
+
+def window(traj, t_start: float):
+    """The saved instants at or after ``t_start`` (s): the kept window after skipped revolutions.
+
+    Args:
+        traj: a single ``Trajectory``.
+        t_start: first kept time, s; a hair of round-off (1e-9 of the horizon) is allowed so that
+            the instant at exactly ``t_start`` stays.
+    """
+    t = np.asarray(traj.t)
+    slack = 1e-9 * max(abs(float(t[-1])), 1e-300)
+    return _select(traj, t >= t_start - slack)
+
+
+def finite_rows(traj):
+    """The saved instants whose coordinates, velocities, accelerations and multipliers are all finite
+    (a failed solve leaves inf/nan after the time it reached)."""
+    finite = np.ones(np.asarray(traj.t).shape, dtype=bool)
+    for name in ("t", "q", "qd", "qdd", "multipliers", "input_torque"):
+        values = np.asarray(getattr(traj, name))
+        finite &= np.all(np.isfinite(values.reshape(values.shape[0], -1)), axis=1)
+    return _select(traj, finite)
+
+
+def mode_shares(traj, continuous_fraction: float, reference_period: float | None = None) -> dict:
+    """Time share of each combination of contact modes over the saved instants (MODEL.md §7)."""
+    from .analysis import combination_shares, trajectory_modes
+
+    modes = trajectory_modes(traj, continuous_fraction, reference_period)
+    return combination_shares({name: modes[name] for name in clearance_joint_names(traj)})
+
+
+def run_statistics(traj) -> dict[str, float]:
+    """The run's ``statistics`` object for run.json (``jaxclear.analysis.statistics``)."""
+    from . import analysis
+
+    statistics = getattr(analysis, "statistics", None)
+    if statistics is None:
+        return {}
+    return {name: float(value) for name, value in statistics(traj).items()}
 
 
 def clearance_joint_names(traj) -> list[str]:

@@ -18,13 +18,18 @@ import pytest
 import jaxclear
 import jaxclear._simulate
 from jaxclear import cli
+from jaxclear.cli._config import resolve_settings
+from jaxclear.cli._main import build_parser
+from jaxclear.cli._mechanism_config import build_mechanism
+from jaxclear.cli._run import grid, solver_for
+from jaxclear.cli._settings import SETTINGS
 from jaxclear.contact import CONTACT_LAWS, Hybrid
 from jaxclear.friction import FRICTION_LAWS, LuGre
 
 # Short horizon, shared by every simulating test here and in test_plot.py: the same number of output
 # points and solver settings compile once per process (the clearance run's ideal-joint reference
 # curve reuses the compilation of the ideal runs).
-SHORT = ["--revolutions", "0.25", "--points-per-revolution", "360", "--no-progress", "--quiet"]
+SHORT = ["--revolutions", "0.25", "--skip-revolutions", "0", "--points-per-revolution", "360", "--no-progress", "--quiet"]
 NUM_POINTS = 91  # 0.25 rev x 360 points/rev = 90 intervals
 IDEAL = ["--clearance-joints", "none"]
 CHEAP_CLEARANCE = ["--clearance-joints", "B", "--contact", "lankarani-nikravesh", "--friction", "none"]
@@ -141,12 +146,12 @@ def test_run_json(ideal_run):
 
 def test_defaults_are_three_clearance_joints():
     """The default run, checked without simulating it: O, A, B with clearance, hybrid + LuGre, Tsit5."""
-    config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run"]))
-    assert sources[("clearance", "joints")] == "default"
-    mechanism = cli._mechanism(config)
-    assert cli._solver(config, sources, mechanism).method == "kencarp5"  # auto with LuGre -> imex (measured)
-    config_c, sources_c = cli.resolve_settings(cli.build_parser().parse_args(["run", "--friction", "coulomb"]))
-    assert cli._solver(config_c, sources_c, cli._mechanism(config_c)).method == "tsit5"  # auto otherwise -> fast
+    settings = resolve_settings(build_parser().parse_args(["run"]))
+    assert settings.sources[("clearance", "joints")] == "default"
+    mechanism = build_mechanism(settings)
+    assert solver_for(settings, mechanism).method == "kencarp5"  # auto with LuGre -> imex (measured)
+    coulomb = resolve_settings(build_parser().parse_args(["run", "--friction", "coulomb"]))
+    assert solver_for(coulomb, build_mechanism(coulomb)).method == "tsit5"  # auto otherwise -> fast
     joints = mechanism.clearance_joints
     assert [j.name for j in joints] == ["O", "A", "B"]
     assert not {"O", "A", "B"} & {j.name for j in mechanism.joints}
@@ -154,9 +159,11 @@ def test_defaults_are_three_clearance_joints():
         assert isinstance(joint.contact_law, Hybrid)
         assert isinstance(joint.friction_law, LuGre)
         assert float(joint.geometry.clearance) == pytest.approx(CLEARANCE)
-    assert cli._grid(config) == (pytest.approx(2 * 60 / 5000), 721)
-    config, sources = cli.resolve_settings(cli.build_parser().parse_args(["run", "--solver", "imex"]))
-    assert cli._solver(config, sources).method == "kencarp5"
+    assert grid(settings) == (pytest.approx(2 * 60 / 5000), 721)
+    assert settings.config["simulation"]["start"] == "wall"
+    assert settings.config["simulation"]["skip_revolutions"] == 1.0
+    imex = resolve_settings(build_parser().parse_args(["run", "--solver", "imex"]))
+    assert solver_for(imex).method == "kencarp5"
 
 
 def test_clearance_columns(clearance_run):
@@ -232,7 +239,7 @@ def test_help_lists_options_and_keys(capsys):
         cli.main(["run", "--help"])
     assert exc.value.code == 0
     text = capsys.readouterr().out
-    for setting in cli.SETTINGS:
+    for setting in SETTINGS:
         assert setting.key in text, setting.key
         if setting.flag:
             assert setting.flag in text, setting.flag
@@ -241,7 +248,7 @@ def test_help_lists_options_and_keys(capsys):
     # The defaults: three clearance joints, hybrid contact, LuGre friction; every law name listed.
     flat = " ".join(re.sub(r"-\n\s*", "-", text).split())  # argparse wraps to the terminal, also at hyphens
     assert "--clearance-joints LIST" in flat
-    assert "(default: O,A,B)" in flat
+    assert "(default: slider_crank O,A,B, four_bar none, custom none)" in flat
     assert "(default: hybrid)" in flat
     assert "(default: lugre)" in flat
     assert "(default: auto)" in flat
@@ -256,12 +263,12 @@ def test_top_level_help(capsys):
     assert "run" in capsys.readouterr().out
 
 
-def test_readme_documents_every_setting():
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    for setting in cli.SETTINGS:
-        assert f"`{setting.key}`" in readme, setting.key
+def test_docs_document_every_setting():
+    docs = (Path(__file__).parents[1] / "docs" / "cli.md").read_text()
+    for setting in SETTINGS:
+        assert f"`{setting.key}`" in docs, setting.key
         if setting.flag:
-            assert f"`{setting.flag}" in readme, setting.flag
+            assert f"`{setting.flag}" in docs, setting.flag
 
 
 BAD_CONFIGS = {
@@ -295,7 +302,7 @@ BAD_OPTIONS = {
     "missing config": (["does-not-exist.toml"], "not found"),
     "unknown clearance joint": (["--clearance-joints", "C"], "--clearance-joints must list distinct joints among O, A, B"),
     "repeated clearance joint": (["--clearance-joints", "B,B"], "distinct joints"),
-    "unknown contact law": (["--contact", "hertzian"], "--contact 'hertzian' is unknown; choose one of hertz, lankarani-nikravesh"),
+    "unknown contact law": (["--contact", "hertzian"], "--contact: contact law 'hertzian' is unknown; choose one of hertz, lankarani-nikravesh"),
     "unknown friction law": (["--friction", "stribeck"], "choose one of none, coulomb, modified-coulomb, lugre"),
     "zero clearance": (["--clearance", "0"], "--clearance must be positive"),
     "negative clearance": (["--clearance", "-0.0005"], "--clearance must be positive"),

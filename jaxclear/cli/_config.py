@@ -1,0 +1,224 @@
+"""Reading and validating the TOML config file, and layering defaults < file < options.
+
+Everything here runs before any solve; every problem is a ``UsageError`` (exit 2) naming the file,
+the table and the key, and saying how to fix it.
+"""
+
+import argparse
+import dataclasses
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from ._common import UsageError
+from ._settings import (
+    BY_LABEL,
+    PER_JOINT,
+    SECTIONS,
+    SETTINGS,
+    check_value,
+    type_name,
+    type_ok,
+)
+
+DESCRIPTION_TABLES = ("ground", "bodies", "joints", "driver", "springs", "loads")
+"""Top-level tables that describe a custom mechanism (schema in ``_mechanism_config.py``)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ConfigFile:
+    """What a config file holds, checked for types and known keys.
+
+    Attributes:
+        path: the file as given.
+        values: settings by (section, key).
+        joint_tables: per-joint clearance tables, ``{joint name: {key: value}}``
+            (``[clearance.<joint>]``).
+        description: the custom-mechanism tables (``DESCRIPTION_TABLES``) as parsed.
+    """
+
+    path: str
+    values: dict[tuple[str, str], Any]
+    joint_tables: dict[str, dict[str, Any]]
+    description: dict[str, Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class Settings:
+    """The resolved settings of a run.
+
+    Attributes:
+        config: ``{section: {key: value}}`` after defaults < file < options (as written to run.json).
+        sources: where each value came from: ``"default"``, ``"[section] key in 'file'"`` or a flag.
+        joint_tables: per-joint clearance overrides, ``{joint: {key: value}}``.
+        description: custom-mechanism tables (empty for the benchmarks).
+        config_file: path of the config file, or ``None``.
+    """
+
+    config: dict[str, dict[str, Any]]
+    sources: dict[tuple[str, str], str]
+    joint_tables: dict[str, dict[str, Any]]
+    description: dict[str, Any]
+    config_file: str | None
+
+    @property
+    def mechanism(self) -> str:
+        return self.config["mechanism"]["name"]
+
+    def source(self, section: str, key: str) -> str:
+        return self.sources[(section, key)]
+
+
+def _decode(path: str) -> str:
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise UsageError(f"config file {path!r} not found; give the path of a TOML file") from None
+    except IsADirectoryError:
+        raise UsageError(f"config file {path!r} is a directory; give the path of a TOML file") from None
+    except OSError as e:
+        raise UsageError(f"cannot read config file {path!r}: {e.strerror or e}") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise UsageError(
+            f"config file {path!r} is not UTF-8 text (byte 0x{data[e.start]:02x} on line {line}); "
+            "save it with UTF-8 encoding (TOML files must be UTF-8)"
+        ) from None
+
+
+def read_config(path: str) -> ConfigFile:
+    """Parse and check a TOML config file; raises ``UsageError`` on any problem."""
+    try:
+        data = tomllib.loads(_decode(path))
+    except tomllib.TOMLDecodeError as e:
+        raise UsageError(f"config file {path!r} is not valid TOML: {e}") from None
+    values: dict[tuple[str, str], Any] = {}
+    joint_tables: dict[str, dict[str, Any]] = {}
+    description = {}
+    known_sections = ", ".join(f"[{s}]" for s in (*SECTIONS, *DESCRIPTION_TABLES))
+    for section, table in data.items():
+        if section in DESCRIPTION_TABLES:
+            if not isinstance(table, dict):
+                raise UsageError(f"{section!r} in {path!r} must be a table [{section}...]; see docs/cli.md")
+            description[section] = table
+            continue
+        if not isinstance(table, dict):
+            where = next((f"[{x.section}]" for x in SETTINGS if x.key == section), None)
+            hint = f"put it under {where}" if where else f"keys belong in the sections {known_sections}"
+            raise UsageError(f"top-level key {section!r} in {path!r} is not in a section; {hint}")
+        if section not in SECTIONS:
+            raise UsageError(f"unknown section [{section}] in {path!r}; known sections: {known_sections}")
+        for key, value in table.items():
+            s = BY_LABEL.get((section, key))
+            if section == "clearance" and isinstance(value, dict) and (s is None or not s.shared):
+                joint_tables[key] = _joint_table(path, key, value)
+                continue
+            if s is None or not s.shared:
+                known = ", ".join(x.key for x in SETTINGS if x.section == section and x.shared)
+                extra = "; per-joint tables [clearance.<joint>] hold per-joint keys" if section == "clearance" else ""
+                hint = " (it belongs in a per-joint table [clearance.<joint>])" if s is not None else ""
+                raise UsageError(f"unknown key {key!r} in [{section}] of {path!r}{hint}; known keys: {known}{extra}")
+            if not type_ok(s, value):
+                raise UsageError(f"{s.label} in {path!r} must be {type_name(s)}, got {value!r}")
+            values[(section, key)] = value
+    return ConfigFile(path, values, joint_tables, description)
+
+
+def _joint_table(path: str, joint: str, table: dict) -> dict:
+    known = {s.key: s for s in PER_JOINT}
+    for key, value in table.items():
+        s = known.get(key)
+        if s is None:
+            raise UsageError(
+                f"unknown key {key!r} in [clearance.{joint}] of {path!r}; per-joint keys: {', '.join(known)}"
+            )
+        if not type_ok(s, value):
+            raise UsageError(f"[clearance.{joint}] {key} in {path!r} must be {type_name(s)}, got {value!r}")
+        check_value(s, value, f"[clearance.{joint}] {key} in {path!r}")
+    return dict(table)
+
+
+def _mechanism_name(args: argparse.Namespace, file: ConfigFile | None) -> tuple[str, str]:
+    """(name, source): the flag, else the file's key, else custom if the file describes bodies."""
+    flag = getattr(args, "mechanism__name", None)
+    if flag is not None:
+        name, source = flag, "--mechanism"
+    elif file is not None and ("mechanism", "name") in file.values:
+        name, source = file.values[("mechanism", "name")], f"[mechanism] name in {file.path!r}"
+    elif file is not None and "bodies" in file.description:
+        return "custom", "default"
+    else:
+        return "slider_crank", "default"
+    check_value(BY_LABEL[("mechanism", "name")], name, source)
+    return name, source
+
+
+def resolve_settings(args: argparse.Namespace) -> Settings:
+    """Defaults < config file < options, checked.
+
+    Args:
+        args: parsed command line; ``args.config`` is the config file path or ``None``; the setting
+            flags are in ``args.<section>__<key>``.
+
+    Returns:
+        The ``Settings`` of the run.
+
+    Raises:
+        UsageError: any bad value, key, type or file.
+    """
+    file = read_config(args.config) if args.config else None
+    name, name_source = _mechanism_name(args, file)
+    config: dict[str, dict[str, Any]] = {section: {} for section in SECTIONS}
+    sources: dict[tuple[str, str], str] = {}
+    for s in SETTINGS:
+        if not s.shared:
+            continue
+        if (s.section, s.key) == ("mechanism", "name"):
+            config["mechanism"]["name"], sources[("mechanism", "name")] = name, name_source
+            continue
+        value, source = s.default_for(name), "default"
+        if file is not None and (s.section, s.key) in file.values:
+            value, source = file.values[(s.section, s.key)], f"{s.label} in {file.path!r}"
+        flag = getattr(args, s.dest, None) if s.flag else None
+        if flag is not None:
+            value, source = flag, s.flag
+        if source != "default" and s.mechanisms is not None and name not in s.mechanisms:
+            raise UsageError(
+                f"{source}: {s.label} applies to {' and '.join(s.mechanisms)} only, and this run's mechanism is "
+                f"{name}; remove it or set [mechanism] name"
+            )
+        if s.mechanisms is not None and name not in s.mechanisms:
+            continue  # not a setting of this mechanism: left out of run.json
+        config[s.section][s.key] = value
+        sources[(s.section, s.key)] = source
+    for s in SETTINGS:
+        if (s.section, s.key) in sources:
+            check_value(s, config[s.section][s.key], sources[(s.section, s.key)])
+    if name == "custom" and config["mechanism"]["rpm"] is None:
+        raise UsageError("[mechanism] rpm is required for a custom mechanism (speed of the [driver] body, rev/min)")
+    description = file.description if file is not None else {}
+    if description and name != "custom":
+        tables = ", ".join(f"[{t}]" for t in description)
+        raise UsageError(
+            f"{tables} in {file.path!r} describe a custom mechanism, but {sources[('mechanism', 'name')]} "
+            f"gives {name}; set [mechanism] name = \"custom\" or remove those tables"
+        )
+    if name == "custom" and "bodies" not in description:
+        raise UsageError("a custom mechanism needs [bodies.<name>] tables (and [joints], [driver]); see docs/cli.md")
+    simulation = config["simulation"]
+    if simulation["skip_revolutions"] >= simulation["revolutions"]:
+        raise UsageError(
+            f"{sources[('simulation', 'skip_revolutions')]}: skip_revolutions ({simulation['skip_revolutions']:g}) must be "
+            f"smaller than revolutions ({simulation['revolutions']:g}) so that something is left to plot; "
+            "lower --skip-revolutions or raise --revolutions"
+        )
+    return Settings(
+        config=config,
+        sources=sources,
+        joint_tables=file.joint_tables if file is not None else {},
+        description=description,
+        config_file=args.config,
+    )
+

@@ -1,0 +1,345 @@
+"""``jaxclear run [CONFIG.toml]``: simulate one mechanism and write results and plots."""
+
+import argparse
+import contextlib
+import dataclasses
+import io
+import os
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+import jaxclear
+
+from .. import _outputs
+from .._startup import ideal_mechanism, wall_start
+from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
+from ._config import Settings, resolve_settings
+from ._mechanism_config import build_mechanism
+from ._settings import (
+    add_setting_arguments,
+    config_reference,
+    solver_help,
+    solver_names,
+)
+
+WARMUP_FRACTION = 1e-3
+"""The warm-up (compile) call integrates this fraction of the horizon; see ``timed_simulate``."""
+
+DESCRIPTION = """\
+Simulate a planar mechanism with revolute clearance joints and write results.csv, results.npz,
+run.json and PNG plots into --out DIR. The mechanism is the benchmark slider-crank (default), the
+four-bar (--mechanism four_bar), or any mechanism described in CONFIG.toml (bodies, points, joints,
+driver, springs, loads; see docs/cli.md).
+
+Defaults: slider-crank at 5000 rpm with clearance joints O, A, B (c = 0.5 mm, hybrid contact law,
+LuGre friction), 2 revolutions, 360 points per revolution, no gravity, solver 'auto' (imex with
+LuGre friction, else fast; measured fastest here). '--clearance-joints none' gives ideal joints.
+
+Start-up: by default each journal starts on its bearing wall, pushed along the reaction of the
+ideal joint (--start wall), and the first revolution is left out of the plots and statistics
+(--skip-revolutions 1). Why: a centred journal flies free across the clearance and hits the wall
+with a start-up impact many times larger than anything in the running motion; that transient set
+the y-ranges of every plot and the peaks of the statistics. A wall start removes most of it, and
+skipping the first revolution removes what is left. '--start centred --skip-revolutions 0' gives
+the raw start (as measured data may begin)."""
+
+EPILOG = f"""\
+config file (TOML; every key optional; command-line options override it):
+{config_reference()}
+
+  per-joint clearance tables [clearance.<joint>] take the keys marked 'also per joint' plus
+  journal_body, and override the shared [clearance] values for that joint. A custom mechanism is
+  described by [ground.points], [bodies.<name>], [joints.<name>], [driver], [springs.<name>] and
+  [loads.<name>] tables: see docs/cli.md and examples/custom_mechanism.toml.
+
+example config:
+  [mechanism]
+  rpm = 3000
+  gravity = true
+  [clearance]
+  joints = "A,B"
+  contact = "lankarani-nikravesh"
+  friction = "modified-coulomb"
+  [clearance.B]
+  clearance = 2e-4
+  journal_body = "rod"
+  [simulation]
+  revolutions = 4
+
+outputs in --out DIR: results.csv and results.npz (every saved instant; columns follow the
+mechanism: see docs/cli.md), run.json (configuration, versions, solver statistics, timings,
+statistics over the kept revolutions, contact-mode shares) and PNG plots of the kept revolutions.
+
+exit codes: 0 success, 1 simulation failed, 2 bad input.
+"""
+
+
+def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
+    """Register the ``run`` subcommand."""
+    run = subparsers.add_parser(
+        "run",
+        allow_abbrev=False,
+        help="simulate a mechanism (slider-crank, four-bar or one from a config file) and write results and plots",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    run.add_argument("config", nargs="?", metavar="CONFIG.toml", help="TOML config file (keys below)")
+    add_setting_arguments(run)
+    run.add_argument("--no-progress", action="store_true", help="no progress bar (it is shown only on a terminal anyway)")
+    run.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors (implies --no-progress)")
+    return run
+
+
+# --- pieces -----------------------------------------------------------------------------------------
+
+
+def solver_for(settings: Settings, mechanism=None):
+    """The run's ``SolverConfig``; ``auto`` is decided from ``mechanism`` (``recommended_solver``)."""
+    from .._solver import solver_config
+
+    section = settings.config["solver"]
+    name = section["method"]
+    if name not in solver_names():
+        raise UsageError(f"{settings.source('solver', 'method')}: solver {name!r} is unknown; choose {solver_help()}")
+    if name == "auto":
+        name = jaxclear.recommended_solver(mechanism).method if mechanism is not None else "fast"
+    solver = solver_config(name)
+    changes = {k: section[k] for k in ("rtol", "atol", "max_steps") if section[k] is not None}
+    changes = {k: float(v) if k != "max_steps" else v for k, v in changes.items()}
+    return solver.replace(**changes) if changes else solver
+
+
+def grid(settings: Settings) -> tuple[float, int]:
+    """(end time in s, number of saved instants)."""
+    rpm = settings.config["mechanism"]["rpm"]
+    revolutions = settings.config["simulation"]["revolutions"]
+    intervals = max(1, round(revolutions * settings.config["simulation"]["points_per_revolution"]))
+    return 60.0 * revolutions / rpm, intervals + 1
+
+
+def kept_start(settings: Settings) -> float:
+    """Start of the kept window (after ``skip_revolutions``), s."""
+    return 60.0 * settings.config["simulation"]["skip_revolutions"] / settings.config["mechanism"]["rpm"]
+
+
+def prepare_output(settings: Settings) -> Path:
+    """Create the output folder and prove it writable (a temporary file), before any solve.
+
+    Raises:
+        UsageError: the path is a file, or the folder cannot be created or written.
+    """
+    text = settings.config["output"]["directory"]
+    source = settings.source("output", "directory")
+    out_dir = Path(text)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"{source} {text!r} exists and is not a folder; choose another path")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".jaxclear-write-test.", dir=out_dir)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise UsageError(f"{source} {text!r} is not writable ({e.strerror or e}); choose a folder you can write to") from None
+    return out_dir
+
+
+def _block(traj):
+    import jax
+
+    jax.block_until_ready(traj.t)
+    return traj
+
+
+def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool, statistics_start: float):
+    """Simulate, timing compilation and the run separately.
+
+    A warm-up call over ``WARMUP_FRACTION`` of the horizon, with the same number of output points,
+    solver settings and progress setting, triggers the one compilation (the end time is a traced
+    value, so the full run reuses the compiled code); its wall time is ``compile_time_s`` (tracing,
+    XLA compilation, assembly and a negligible solve). The full call is then timed alone as
+    ``run_time_s``. Statistics are accumulated over the solver's steps from ``statistics_start``.
+    """
+    from .. import _simulate
+
+    options = dict(num_points=num_points, solver=solver, progress=progress, throw=False)
+    start = time.perf_counter()
+    with contextlib.redirect_stderr(io.StringIO()):  # keep the warm-up's progress bar off the terminal
+        _block(_simulate.simulate(mechanism, t1 * WARMUP_FRACTION, **options))
+    compile_time = time.perf_counter() - start
+    start = time.perf_counter()
+    traj = _block(_simulate.simulate(mechanism, t1, **options))
+    return traj, compile_time, time.perf_counter() - start
+
+
+def _joints_text(settings: Settings, names: list[str]) -> str:
+    if not names:
+        return "ideal joints"
+    c = settings.config["clearance"]
+    per_joint = [j for j in names if j in settings.joint_tables]
+    extra = f", per-joint settings at {','.join(per_joint)}" if per_joint else ""
+    return (
+        f"clearance joints {','.join(names)} (c = {c['clearance'] * 1e3:g} mm, {c['contact']} contact, "
+        f"{'no' if c['friction'] == 'none' else c['friction']} friction{extra})"
+    )
+
+
+def _figures(traj, statistics: dict) -> str:
+    """The run's headline figures over the kept window."""
+    parts = []
+    columns = _outputs.column_map(traj)
+    if "slider_a" in columns:
+        acc = columns["slider_a"].values
+        parts.append(f"slider acceleration {acc.min():.6g} .. {acc.max():.6g} m/s^2")
+    driver = traj.mechanism.driver
+    if driver is not None:
+        torque = np.asarray(traj.input_torque)
+        parts.append(f"{driver.body} torque {torque.min():.6g} .. {torque.max():.6g} N m")
+    for name in _outputs.clearance_joint_names(traj):
+        key = f"{name}_peak_normal_force"
+        peak = statistics.get(key, float(np.max(np.asarray(traj.clearance[name]["normal_force"]))))
+        parts.append(f"{name} peak normal force {peak:.6g} N")
+    parts.append(f"max constraint violation {float(np.max(traj.constraint_violation)):.3g} m")
+    return "; ".join(parts)
+
+
+# --- the command ------------------------------------------------------------------------------------
+
+
+def run(args: argparse.Namespace, argv: list[str]) -> int:
+    """Run ``jaxclear run``; returns 0, raises ``UsageError`` (exit 2) or ``RunError`` (exit 1)."""
+    settings = resolve_settings(args)
+    config = settings.config
+    solver_for(settings)  # reject a bad solver name before any work
+    fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX's backend starts
+    mechanism = build_mechanism(settings)
+    ideal = ideal_mechanism(mechanism)  # clearance joints made ideal: the plots' reference
+    names = [j.name for j in mechanism.clearance_joints]
+    start = config["simulation"]["start"]
+    t1, num_points = grid(settings)
+    try:
+        jaxclear.assemble(ideal)  # a mechanism that cannot assemble is bad input: exit 2
+        if names and start == "wall":
+            mechanism = wall_start(mechanism, num_points=num_points)  # shares the reference run's compilation
+        jaxclear.assemble(mechanism)
+    except jaxclear.AssemblyError as e:
+        raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
+    except jaxclear.ModelError as e:
+        raise UsageError(f"invalid mechanism: {one_line(e)}") from None
+    solver = solver_for(settings, mechanism)
+    t_keep = kept_start(settings)
+    out_dir = prepare_output(settings)
+
+    quiet = args.quiet
+    progress = not (quiet or args.no_progress) and sys.stderr.isatty()
+    say = (lambda *a, **k: None) if quiet else print
+    rpm, revs = config["mechanism"]["rpm"], config["simulation"]["revolutions"]
+    skip = config["simulation"]["skip_revolutions"]
+    say(
+        f"jaxclear {jaxclear.__version__}: {settings.mechanism}, {_joints_text(settings, names)}, {rpm:g} rpm, "
+        f"{revs:g} rev ({t1:.6g} s, {num_points} points; plots and statistics from revolution {skip:g}), "
+        f"{start} start, solver {config['solver']['method']} ({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
+    )
+    say("compiling (one-off) and simulating ...", flush=True)
+    try:
+        traj, compile_time, run_time = timed_simulate(mechanism, t1, num_points, solver, progress, t_keep)
+    except jaxclear.AssemblyError as e:
+        raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
+    except jaxclear.ModelError as e:
+        raise UsageError(f"invalid mechanism: {one_line(e)}") from None
+    except jaxclear.SimulationError as e:
+        raise RunError(one_line(e)) from None
+
+    info = dict(
+        format=_outputs.RUN_FORMAT,
+        status="complete",
+        error=None,
+        created=datetime.now(UTC).isoformat(timespec="seconds"),
+        command=[PROG, *argv],
+        config_file=str(Path(settings.config_file).resolve()) if settings.config_file else None,
+        config=config,
+        clearance_per_joint=settings.joint_tables,
+        description=settings.description,
+        sources={f"{sec}.{key}": src for (sec, key), src in settings.sources.items()},
+        mechanism=settings.mechanism,
+        clearance_joints=names,
+        initial_eccentricity={
+            j.name: np.asarray(j.initial_eccentricity).tolist() for j in mechanism.clearance_joints
+        },
+        t_end_s=t1,
+        num_points=num_points,
+        kept_window_s=[t_keep, t1],
+        solver={f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)},
+        stats=traj.stats(),
+        compile_time_s=compile_time,
+        run_time_s=run_time,
+        fast_compile=fast_compile,
+        timing=(
+            "compile_time_s: wall time of a warm-up simulate call over "
+            f"{WARMUP_FRACTION:g} of the horizon with identical shapes and settings (tracing, XLA "
+            "compilation, assembly and a negligible solve); run_time_s: wall time of the full "
+            "simulate call afterwards, which reuses the compiled code."
+        ),
+        versions=_outputs.package_versions(),
+        jax_backend=__import__("jax").default_backend(),
+    )
+    fraction = config["clearance"]["continuous_fraction"]
+    if not bool(traj.succeeded):
+        return _failed(traj, solver, info, out_dir, fraction, say)
+
+    kept = _outputs.window(traj, t_keep)
+    statistics = _outputs.run_statistics(traj)
+    reference = None
+    if names and config["output"]["plots"]:
+        say("ideal-joint reference run for the plots ...", flush=True)
+        reference = _block(jaxclear.simulate(ideal, t1, num_points=num_points, solver="fast"))
+        reference = _outputs.window(reference, t_keep)
+    files = []
+    try:
+        if config["output"]["plots"]:
+            from ..plot import save_standard_plots
+
+            files = [p.name for p in save_standard_plots(kept, out_dir, reference=reference)]
+        info.update(
+            statistics=statistics,
+            contact_mode_shares=_outputs.mode_shares(kept, fraction, reference_period=60.0 / rpm) if names else {},
+            files=files,
+        )
+        paths = _outputs.write_results(out_dir, traj, info, fraction)
+    except OSError as e:
+        raise RunError(f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder") from None
+
+    stats = traj.stats()
+    say(f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)")
+    say(f"from revolution {skip:g}: {_figures(kept, statistics)}")
+    say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
+    return 0
+
+
+def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> int:
+    """A failed solve: the finite instants reached are written, no plots, run.json says why; exit 1."""
+    from .._simulate import failure_error
+
+    failure = failure_error(traj, solver)
+    reached = _outputs.finite_rows(traj.truncated())
+    info.update(status="failed", error=one_line(failure), statistics={}, contact_mode_shares={}, files=[])
+    try:
+        if reached.t.shape[0] >= 1:
+            _outputs.write_results(out_dir, reached, info, fraction)
+            where = (
+                f"Partial results up to t = {float(reached.t[-1]):.6g} s (no plots) are in {out_dir}/ "
+                "(run.json status 'failed')."
+            )
+        else:
+            _outputs.write_json(out_dir / _outputs.RUN_JSON_NAME, {**info, "files": [_outputs.RUN_JSON_NAME]})
+            where = f"No instant was reached; {out_dir}/run.json has status 'failed'."
+    except OSError as e:
+        raise RunError(f"{one_line(failure)} Also cannot write to {str(out_dir)!r}: {e.strerror or e}.") from None
+    say(f"simulation failed after {int(traj.num_steps)} steps")
+    raise RunError(f"{one_line(failure)} {where}")
+
