@@ -18,6 +18,7 @@ from ._simulate import simulate_batch as simulate_batch  # noqa: E402
 from ._solver import PRESETS as PRESETS  # noqa: E402
 from ._solver import SolverConfig as SolverConfig  # noqa: E402
 from ._solver import recommended_solver as recommended_solver  # noqa: E402
+from ._startup import wall_start as wall_start  # noqa: E402
 from ._trajectory import Trajectory as Trajectory  # noqa: E402
 from .model import AbstractDriver as AbstractDriver  # noqa: E402
 from .model import AbstractForceElement as AbstractForceElement  # noqa: E402
