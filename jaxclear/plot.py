@@ -20,7 +20,14 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MultipleLocator
 
-from ._outputs import Column, clearance_joint_names, column_map
+from ._outputs import (
+    BODY_OUTPUTS,
+    Column,
+    clearance_joint_names,
+    column_map,
+    is_slider_crank,
+)
+from .model import RevoluteJoint
 
 QUANTITY_LABELS = {
     "slider_x": "Slider position",
@@ -34,7 +41,13 @@ QUANTITY_LABELS = {
 }
 """Axis titles of the common quantities; other columns are labelled by their name."""
 
-UNIT_LABELS = {"m/s^2": "m/s²", "N m": "N·m", "deg": "°"}
+BODY_LABELS = {
+    "x": "x", "y": "y", "phi": "angle", "vx": "velocity x", "vy": "velocity y", "omega": "angular velocity",
+    "ax": "acceleration x", "ay": "acceleration y", "alpha": "angular acceleration",
+}
+"""Axis titles of the per-body columns ``<body>_<output>`` of a general mechanism."""
+
+UNIT_LABELS = {"m/s^2": "m/s²", "N m": "N·m", "deg": "°", "rad/s^2": "rad/s²"}
 
 STANDARD_PLOTS = (
     ("slider_position.png", "slider_x", "angle"),
@@ -68,8 +81,26 @@ def _curve(traj, quantity: str, xaxis: str) -> tuple[Column, Column]:
     return columns[f"{mech.driver.body}_angle"], _get(columns, quantity)
 
 
+def _title(name: str) -> str:
+    """Human title of a column: ``QUANTITY_LABELS``, per-body outputs, driven-body torque."""
+    if name in QUANTITY_LABELS:
+        return QUANTITY_LABELS[name]
+    for output, *_ in BODY_OUTPUTS:
+        if name.endswith(f"_{output}"):
+            body = name[: -len(output) - 1]
+            return f"{body.capitalize()} {BODY_LABELS[output]}"
+    if name.endswith("_torque"):
+        return f"{name[:-7].capitalize()} input torque"
+    return name
+
+
+def _angle_label(traj) -> str:
+    body = traj.mechanism.driver.body
+    return f"{body.capitalize()} angle (°)"
+
+
 def _axis_label(column: Column) -> str:
-    title = QUANTITY_LABELS.get(column.name, column.name)
+    title = _title(column.name)
     unit = UNIT_LABELS.get(column.unit, column.unit)
     return f"{title} ({unit})" if unit else title
 
@@ -95,7 +126,7 @@ def _finish(ax, xlabel, ycol, title, legend, traj):
     ax.set_xlabel(xlabel)
     ax.set_ylabel(_axis_label(ycol))
     if title is None:
-        title = QUANTITY_LABELS.get(ycol.name, ycol.name) + _speed_label(traj)
+        title = _title(ycol.name) + _speed_label(traj)
     ax.set_title(title)
     ax.grid(True, which="major", alpha=0.5)
     if legend:
@@ -150,7 +181,7 @@ def plot_vs_crank_angle(
     angle, ycol = _curve(traj, quantity, "angle")
     ax.plot(angle.values, ycol.values, label=label or ("this run" if refs else None), **MAIN_STYLE)
     _angle_ticks(ax, angle.values)
-    _finish(ax, "Crank angle (°)", ycol, title, legend=bool(refs) or label is not None, traj=traj)
+    _finish(ax, _angle_label(traj), ycol, title, legend=bool(refs) or label is not None, traj=traj)
     return fig
 
 
@@ -231,12 +262,49 @@ def plot_contact_forces(traj, *, ax=None) -> Figure:
         angle, force = _curve(traj, f"{name}_normal_force", "angle")
         ax.plot(angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
         _angle_ticks(ax, angle.values)
-    ax.set_xlabel("Crank angle (°)")
+    ax.set_xlabel(_angle_label(traj))
     ax.set_ylabel("Normal contact force (kN)")
     ax.set_title(f"Normal contact force{_speed_label(traj)}")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
     return fig
+
+
+def plot_joint_forces(traj, *, ax=None) -> Figure:
+    """Force magnitude of every ideal revolute joint against the driven body's angle."""
+    fig, ax = _new_axes(ax)
+    columns = column_map(traj)
+    angle = columns[f"{traj.mechanism.driver.body}_angle"].values
+    joints = [j.name for j in traj.mechanism.joints if isinstance(j, RevoluteJoint)]
+    for k, name in enumerate(joints):
+        force = np.hypot(columns[f"{name}_Fx"].values, columns[f"{name}_Fy"].values)
+        ax.plot(angle, force, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
+    _angle_ticks(ax, angle)
+    ax.set_xlabel(_angle_label(traj))
+    ax.set_ylabel("Joint force magnitude (N)")
+    ax.set_title(f"Ideal joint forces{_speed_label(traj)}")
+    ax.grid(True, alpha=0.3)
+    if joints:
+        ax.legend(fontsize="small")
+    return fig
+
+
+def standard_plots(traj) -> list[tuple[str, str, str]]:
+    """(file name, quantity, horizontal axis) of the standard plots of ``traj``'s mechanism.
+
+    The benchmark slider–crank gets ``STANDARD_PLOTS``; any other driven mechanism the driven
+    body's input torque and, per other body, its angle and angular acceleration (against the driven
+    angle); every mechanism the constraint violation (against time).
+    """
+    mech = traj.mechanism
+    if is_slider_crank(mech) or mech.driver is None:
+        return list(STANDARD_PLOTS)
+    driven = mech.driver.body
+    plots = [(f"{driven}_torque.png", f"{driven}_torque", "angle")]
+    for body in mech.body_names:
+        if body != driven:
+            plots += [(f"{body}_angle.png", f"{body}_phi", "angle"), (f"{body}_angular_acceleration.png", f"{body}_alpha", "angle")]
+    return plots + [("constraint_violation.png", "constraint_violation", "time")]
 
 
 def _save(fig, out_dir: Path, filename: str, dpi: int) -> Path:
@@ -248,12 +316,16 @@ def _save(fig, out_dir: Path, filename: str, dpi: int) -> Path:
 
 
 def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> list[Path]:
-    """Write the standard PNGs of a slider–crank run into ``out_dir`` (created if missing).
+    """Write the standard PNGs of a run into ``out_dir`` (created if missing).
 
-    Files: slider_position.png, slider_velocity.png, slider_acceleration.png, crank_torque.png
-    (against crank angle) and constraint_violation.png (against time, log axis); with clearance
-    joints also normal_force.png (against crank angle) and orbit_<joint>.png per joint; plots whose
-    quantity the mechanism lacks (no slider, no driver) are skipped.
+    Files (``standard_plots``): for the slider–crank slider_position.png, slider_velocity.png,
+    slider_acceleration.png, crank_torque.png (against crank angle); for another driven mechanism
+    <driven>_torque.png, <body>_angle.png and <body>_angular_acceleration.png per other body and
+    joint_forces.png (ideal revolute joints); always constraint_violation.png (against time, log
+    axis); with clearance joints also normal_force.png (against the driven angle) and
+    orbit_<joint>.png per joint. Plots whose quantity the mechanism lacks (no driver) are skipped.
+    The y-ranges follow the instants in ``traj``: pass the kept window (``_outputs.window``) to
+    leave a start-up transient out.
 
     Args:
         traj: a single ``Trajectory``.
@@ -268,7 +340,7 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
     out_dir.mkdir(parents=True, exist_ok=True)
     available = column_map(traj)
     written = []
-    for filename, quantity, xaxis in STANDARD_PLOTS:
+    for filename, quantity, xaxis in standard_plots(traj):
         if quantity not in available:
             continue
         if xaxis == "angle":
@@ -280,6 +352,9 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
         else:
             fig = plot_vs_time(traj, quantity, reference=reference)
         written.append(_save(fig, out_dir, filename, dpi))
+    mech = traj.mechanism
+    if mech.driver is not None and not is_slider_crank(mech) and any(isinstance(j, RevoluteJoint) for j in mech.joints):
+        written.append(_save(plot_joint_forces(traj), out_dir, "joint_forces.png", dpi))
     if traj.clearance and traj.mechanism.driver is not None:
         written.append(_save(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
         for name in clearance_joint_names(traj):

@@ -429,3 +429,17 @@ def _custom(settings: Settings, spec: dict | None = None):
         )
     except (jaxclear.ModelError, ValueError, TypeError) as e:
         raise UsageError(f"invalid custom mechanism: {one_line(e)}") from None
+
+
+def markdown_reference() -> str:
+    """The custom-mechanism tables (``TABLES``) as Markdown (embedded verbatim in docs/cli.md)."""
+    out = []
+    for table, fields in TABLES.items():
+        out += [f"### `[{table}]`", "", "| key | unit | required | description |", "| --- | --- | --- | --- |"]
+        for f in fields:
+            required = "yes" if f.required else f"no (default {f.default})"
+            if table == "loads.<name>" and f.key not in ("type",):
+                required = f"for type {'force' if f.key in LOAD_KEYS['force'] else 'torque'}"
+            out.append(f"| `{f.key}` | {f.unit} | {required} | {f.help} |")
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"

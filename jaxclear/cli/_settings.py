@@ -249,7 +249,7 @@ def format_default(s: Setting) -> str:
             by_value.setdefault(f"{getattr(preset, s.key):g}", []).append(name)
         return "preset's: " + ", ".join(f"{'/'.join(names)} {value}" for value, names in by_value.items())
     if s.default is None:
-        return "see help"
+        return "see description"
     if isinstance(s.default, Mapping):
         return ", ".join(f"{name} {_format_value(value)}" for name, value in s.default.items())
     return _format_value(s.default)
@@ -383,3 +383,27 @@ def all_flags() -> list[str]:
             if s.kind is bool or s.kind == "gravity":
                 flags.append("--no-" + s.flag[2:])
     return flags
+
+
+def markdown_reference() -> str:
+    """The settings reference as Markdown tables, one per section (docs/cli.md embeds it verbatim;
+    ``tests/test_cli.py`` checks that it is current)."""
+    out = []
+    for section in SECTIONS:
+        out += [f"### `[{section}]`", "", "| key | unit | default | flag | description |", "| --- | --- | --- | --- | --- |"]
+        for s in SETTINGS:
+            if s.section != section:
+                continue
+            notes = []
+            if s.mechanisms:
+                notes.append(f"{' and '.join(s.mechanisms)} only")
+            if not s.shared:
+                notes.append(f"per-joint table `[{section}.<joint>]` only")
+            elif s.per_joint:
+                notes.append(f"also in `[{section}.<joint>]`")
+            note = f" ({'; '.join(notes)})" if notes else ""
+            flag = f"`{s.flag}`" if s.flag else ""
+            text = s.help.replace("|", "\\|")
+            out.append(f"| `{s.key}` | {s.unit} | {format_default(s)} | {flag} | {text}{note} |")
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"
