@@ -1,8 +1,8 @@
-"""Construction-time value checks shared by the model objects.
+"""Construction-time parameter checks: the one home of the checks made by model objects and laws.
 
-Checks run only on concrete values; under ``jit``/``vmap`` (tracers) they are skipped and
+Value checks run only on concrete values; under ``jit``/``vmap`` (tracers) they are skipped and
 value checks fall to the compiled solve's input checks (``Trajectory.input_error``, raised by
-``simulate``).
+``simulate``). Every message names the owner, the parameter, the value and a fix.
 """
 
 import jax
@@ -12,33 +12,49 @@ from ._errors import ModelError
 
 
 def is_concrete(x) -> bool:
+    """False for JAX tracers (values inside ``jit``/``vmap``/``grad``), True otherwise."""
     return not isinstance(x, jax.core.Tracer)
 
 
-def check_finite(owner: str, name: str, value) -> None:
+def _fail(owner: str, name: str, requirement: str, value, unit: str, fix: str):
+    raise ModelError(f"{owner}: {name} must be {requirement}, got {value}{(' ' + unit) if unit else ''}; {fix}.")
+
+
+def check_finite(owner: str, name: str, value, fix: str = "pass a real number") -> None:
+    """Raise ``ModelError`` unless the concrete ``value`` is finite (every element)."""
     if is_concrete(value) and not np.all(np.isfinite(np.asarray(value))):
-        raise ModelError(f"{owner}: {name} must be finite, got {np.asarray(value)}; pass a real number.")
+        _fail(owner, name, "finite", np.asarray(value), "", fix)
 
 
-def check_positive(owner: str, name: str, value, unit: str = "") -> None:
+def check_positive(owner: str, name: str, value, unit: str = "", fix: str = "pass a positive value in SI units") -> None:
+    """Raise ``ModelError`` unless the concrete ``value`` is finite and ``> 0`` (every element)."""
     check_finite(owner, name, value)
     if is_concrete(value) and not np.all(np.asarray(value) > 0):
-        raise ModelError(
-            f"{owner}: {name} must be > 0, got {np.asarray(value)}{(' ' + unit) if unit else ''}; "
-            f"pass a positive value in SI units."
-        )
+        _fail(owner, name, "> 0", np.asarray(value), unit, fix)
+
+
+def check_nonnegative(owner: str, name: str, value, unit: str = "", fix: str = "pass a value >= 0 in SI units") -> None:
+    """Raise ``ModelError`` unless the concrete ``value`` is finite and ``>= 0`` (every element)."""
+    check_finite(owner, name, value)
+    if is_concrete(value) and not np.all(np.asarray(value) >= 0):
+        _fail(owner, name, ">= 0", np.asarray(value), unit, fix)
+
+
+def check_restitution(owner: str, value, name: str = "restitution") -> None:
+    """Raise ``ModelError`` unless the concrete coefficient of restitution is in (0, 1]."""
+    if is_concrete(value):
+        v = np.asarray(value)
+        if not np.all((v > 0) & (v <= 1)):
+            _fail(owner, name, "in (0, 1]", v, "", "use 1 for a perfectly elastic contact and e.g. 0.9 for steel on steel")
+
+
+def check_count(owner: str, name: str, value) -> None:
+    """Raise ``ModelError`` unless ``value`` is a Python integer ``>= 1`` (a static count)."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        _fail(owner, name, "an integer >= 1", repr(value), "", "pass a positive whole number")
 
 
 def check_shape(owner: str, name: str, value, shape: tuple) -> None:
+    """Raise ``ModelError`` unless ``value`` has ``shape``."""
     if np.shape(value) != shape:
         raise ModelError(f"{owner}: {name} must have shape {shape}, got shape {np.shape(value)}.")
-
-
-def build_from_registry(registry, kind: str, name: str, params: dict):
-    """Instantiate ``registry[name](**params)``; unknown names raise ValueError listing valid ones."""
-    try:
-        cls = registry[name]
-    except KeyError:
-        valid = ", ".join(repr(k) for k in registry)
-        raise ValueError(f"unknown {kind} {name!r}: use one of {valid}") from None
-    return cls(**params)

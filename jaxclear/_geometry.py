@@ -1,4 +1,8 @@
-"""Planar kinematics of points on bodies (MODEL.md §1)."""
+"""Planar kinematics of points on bodies (MODEL.md §1).
+
+Shared by the model (ideal joints' constraint functions, applied forces, springs) and the dynamics
+(clearance joints), so it lives beside both rather than in either.
+"""
 
 import jax.numpy as jnp
 from jaxtyping import Array, Float
@@ -50,6 +54,11 @@ def point_velocity(q, qd, index: int | None, local) -> Float[Array, "2"]:
     rd, phid = body_coordinates(qd, index)
     c, s = jnp.cos(phi), jnp.sin(phi)
     return rd + phid * jnp.stack([-s * local[0] - c * local[1], c * local[0] - s * local[1]])
+
+
+def perp(v: Float[Array, "2"]) -> Float[Array, "2"]:
+    """v turned by +90°: (−v_y, v_x)."""
+    return jnp.stack([-v[1], v[0]])
 
 
 def cross2(a: Float[Array, "2"], b: Float[Array, "2"]) -> Float[Array, ""]:

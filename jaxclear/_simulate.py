@@ -15,6 +15,7 @@ from ._solver import SolverConfig, solver_config
 from ._trajectory import INPUT_ERRORS, Trajectory
 from .dynamics._assembly import assemble_state, check_assembly
 from .dynamics._equations import (
+    clearance_outputs,
     evaluate,
     memory_decay_rates,
     memory_offset_shift,
@@ -22,6 +23,7 @@ from .dynamics._equations import (
     stiff_vector_field,
     vector_field,
 )
+from .dynamics._equations import initial_state as dynamics_initial_state
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
@@ -35,8 +37,7 @@ _DECAY = eqx.filter_jit(memory_decay_rates)
 
 def initial_state(mechanism, q0, qd0):
     """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
-    parts = [q0, qd0] + [e.initial_state(mechanism.index, q0, qd0) for e in mechanism.force_elements]
-    return jnp.concatenate([jnp.reshape(jnp.asarray(p, dtype=float), (-1,)) for p in parts])
+    return dynamics_initial_state(mechanism, q0, qd0)
 
 
 def assemble(mechanism, t0: float = 0.0):
@@ -61,23 +62,20 @@ def check_parameters(mechanism) -> None:
 
 def _outputs(mechanism, t, y):
     ev = evaluate(mechanism, t, y)
-    lam = ev["multipliers"]
+    lam = ev.multipliers
     slices = mechanism.constraint_slices
     if mechanism.driver is not None:
         torque = -lam[slices[mechanism.driver.name]][0]
     else:
         torque = jnp.zeros((), y.dtype)
     reactions = {j.name: lam[slices[j.name]] for j in mechanism.joints}
-    clearance = {
-        c.name: c.outputs(mechanism.index, ev["q"], ev["qd"], ev["qdd"], t, ev["states"][c.name])
-        for c in mechanism.clearance_joints
-    }
-    phi, phid = ev["phi"], ev["phi_dot"]
+    clearance = clearance_outputs(mechanism, ev)
+    phi, phid = ev.phi, ev.phi_dot
     viol = jnp.max(jnp.abs(phi), initial=0.0)
     vviol = jnp.max(jnp.abs(phid), initial=0.0)
     n = mechanism.num_coordinates
     return dict(
-        qdd=ev["qdd"],
+        qdd=ev.qdd,
         internal_state=y[2 * n :],
         multipliers=lam,
         input_torque=torque,

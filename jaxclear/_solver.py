@@ -163,7 +163,7 @@ def recommended_solver(mechanism) -> SolverConfig:
     closed-form stage solves of ``AffineKenCarp`` then took 0.477 s / 6 773 steps); without internal
     friction states Tsit5 is the fastest (ideal joints, Coulomb-type friction).
     """
-    stiff = any(getattr(getattr(e, "friction_law", None), "num_states", 0) > 0 for e in mechanism.force_elements)
+    stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
     return PRESETS["imex" if stiff else "fast"]
 
 

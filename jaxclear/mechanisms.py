@@ -59,16 +59,16 @@ def slider_crank(
         The ``Mechanism`` with bodies ``crank``, ``rod``, ``slider``; ideal joints ``O``, ``A``,
         ``B`` (revolute) and ``slider_guide`` (translational); driver ``driver``.
     """
-    r, l = crank_length, rod_length
-    if isinstance(r, float | int) and isinstance(l, float | int) and not l > r > 0:
+    crank, rod = crank_length, rod_length
+    if isinstance(crank, float | int) and isinstance(rod, float | int) and not rod > crank > 0:
         raise ModelError(
-            f"slider_crank: need rod_length > crank_length > 0, got rod_length={l}, crank_length={r}; "
+            f"slider_crank: need rod_length > crank_length > 0, got rod_length={rod}, crank_length={crank}; "
             "a shorter rod cannot reach the slider guide at every crank angle."
         )
     th = initial_angle
     c, s = jnp.cos(th), jnp.sin(th)
-    ax, ay = r * c, r * s
-    bx = ax + jnp.sqrt(jnp.maximum(l**2 - ay**2, 0.0))
+    ax, ay = crank * c, crank * s
+    bx = ax + jnp.sqrt(jnp.maximum(rod**2 - ay**2, 0.0))
     rod_phi = jnp.arctan2(-ay, bx - ax)
     bodies = (
         Body("crank", crank_mass, crank_inertia, position=(0.5 * ax, 0.5 * ay, th)),
@@ -76,9 +76,9 @@ def slider_crank(
         Body("slider", slider_mass, slider_inertia, position=(bx, 0.0, 0.0)),
     )
     revolute = {
-        "O": RevoluteJoint("O", "ground", (0.0, 0.0), "crank", (-0.5 * r, 0.0)),
-        "A": RevoluteJoint("A", "crank", (0.5 * r, 0.0), "rod", (-0.5 * l, 0.0)),
-        "B": RevoluteJoint("B", "rod", (0.5 * l, 0.0), "slider", (0.0, 0.0)),
+        "O": RevoluteJoint("O", "ground", (0.0, 0.0), "crank", (-0.5 * crank, 0.0)),
+        "A": RevoluteJoint("A", "crank", (0.5 * crank, 0.0), "rod", (-0.5 * rod, 0.0)),
+        "B": RevoluteJoint("B", "rod", (0.5 * rod, 0.0), "slider", (0.0, 0.0)),
     }
     clearance_elements = make_clearance_joints(revolute, clearance_joints, clearance_options, "slider_crank")
     joints = tuple(j for name, j in revolute.items() if name not in {c.name for c in clearance_elements})

@@ -7,9 +7,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import contact_kinematics
 from scipy.optimize import brentq
 
-from helpers import contact_kinematics
 from jaxclear.contact import (
     CONTACT_LAWS,
     AdamsImpact,
@@ -399,11 +399,11 @@ def test_unknown_law_name_lists_valid_names():
     [
         ("lankarani-nikravesh", {"restitution": 1.3}, r"restitution must be in \(0, 1\], got 1.3"),
         ("flores", {"restitution": 0.0}, r"restitution must be in \(0, 1\]"),
-        ("hertz", {"stiffness": -1.0}, "stiffness must be finite and > 0"),
+        ("hertz", {"stiffness": -1.0}, r"Hertz: stiffness must be > 0, got -1.0"),
         ("gonthier", {"exponent": 0.0}, "exponent"),
         ("pereira", {"fit_length_unit": 0.0}, "fit_length_unit"),
-        ("liu", {"restitution": float("nan")}, "restitution"),
-        ("impact", {"max_damping": -1.0}, "max_damping must be finite and >= 0"),
+        ("liu", {"restitution": float("nan")}, r"Liu2007: restitution must be in \(0, 1\], got nan"),
+        ("impact", {"max_damping": -1.0}, r"AdamsImpact: max_damping must be >= 0, got -1.0"),
         ("impact", {"max_damping_penetration": 0.0}, "max_damping_penetration"),
         ("elastic-foundation", {"layer_thickness": -0.01}, "layer_thickness"),
         ("elastic-foundation-discrete", {"num_elements": 0}, r"num_elements \(m2\)"),

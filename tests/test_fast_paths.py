@@ -11,8 +11,14 @@ import pytest
 import jaxclear
 from jaxclear._root_finder import DiagonalNewton
 from jaxclear.contact import Hybrid, LankaraniNikravesh
+from jaxclear.dynamics import _clearance as clearance
 from jaxclear.dynamics._batched import groups
-from jaxclear.dynamics._equations import spd_solve, stiff_vector_field, vector_field
+from jaxclear.dynamics._equations import (
+    solve_accelerations,
+    spd_solve,
+    stiff_vector_field,
+    vector_field,
+)
 from jaxclear.friction import FRICTION_LAWS, LuGre, friction_law_from_name
 from jaxclear.mechanisms import slider_crank
 
@@ -31,15 +37,14 @@ def _perturbed_state(mech, scale=2e-4):
 
 
 def _unbatched_rates(mech, t, y):
-    """dy/dt with every force element through its own mechanism-level methods (no vmap)."""
-    from jaxclear.dynamics._equations import solve_accelerations
-
+    """dy/dt with every clearance joint through its own mechanism-level functions (no vmap)."""
+    assert not mech.forces
     q, qd, states = mech.split_state(y)
     total = jnp.zeros_like(q)
-    for e in mech.force_elements:
-        total = total + e.generalized_force(mech.index, q, qd, t, states[e.name])
+    for c in mech.clearance_joints:
+        total = total + clearance.generalized_force(c, mech.index, q, qd, states[c.name])
     qdd = solve_accelerations(mech, t, q, qd, total)[0]
-    rates = [e.state_derivative(mech.index, q, qd, qdd, t, states[e.name]) for e in mech.force_elements]
+    rates = [clearance.state_derivative(c, mech.index, q, qd, qdd, states[c.name]) for c in mech.clearance_joints]
     return jnp.concatenate([qd, qdd, *rates])
 
 

@@ -227,14 +227,14 @@ def test_unknown_friction_name_lists_valid_names():
 @pytest.mark.parametrize(
     "name, params, match",
     [
-        ("coulomb", {"friction_coefficient": -0.1}, "friction_coefficient must be finite and >= 0"),
+        ("coulomb", {"friction_coefficient": -0.1}, r"Coulomb: friction_coefficient must be >= 0, got -0.1"),
         ("coulomb", {"velocity_tolerance": 0.0}, "velocity_tolerance"),
         ("modified-coulomb", {"lower_velocity": 1e-3, "upper_velocity": 1e-4}, "upper_velocity"),
         ("modified-coulomb", {"lower_velocity": -1e-4}, "lower_velocity"),
-        ("lugre", {"bristle_stiffness": 0.0}, "bristle_stiffness must be finite and > 0"),
+        ("lugre", {"bristle_stiffness": 0.0}, r"LuGre: bristle_stiffness must be > 0, got 0.0"),
         ("lugre", {"stribeck_velocity": -1e-3}, "stribeck_velocity"),
         ("lugre", {"kinetic_friction": 0.0}, "kinetic_friction"),
-        ("lugre", {"bristle_damping": float("nan")}, "bristle_damping"),
+        ("lugre", {"bristle_damping": float("nan")}, "LuGre: bristle_damping must be finite, got nan"),
     ],
 )
 def test_bad_parameters_raise(name, params, match):

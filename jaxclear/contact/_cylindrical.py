@@ -26,10 +26,11 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._checks import check_positive, check_restitution
 from .._smooth import safe_pow
 from ._base import ContactGeometry, _array
 from ._damped import AbstractLNDampedElasticLaw
-from ._hertz import _optional_array, check_positive, check_restitution
+from ._hertz import _optional_array
 
 # Breakpoint and validity range of the exponent fits, in fit units (mm), Pereira et al. 2011.
 _PEREIRA_BREAK = 0.34954
@@ -77,12 +78,12 @@ class Pereira2011(AbstractLNDampedElasticLaw):
     fit_length_unit: Float[Array, ""] = eqx.field(converter=_array, default=1e-3)
 
     def __check_init__(self):
-        check_restitution(self.restitution)
-        check_positive(self.coefficient_a, "coefficient_a", "use 0.965 (internal contact)")
-        check_positive(self.coefficient_b, "coefficient_b", "use 0.0965 (internal contact)")
+        check_restitution(type(self).__name__, self.restitution)
+        check_positive(type(self).__name__, "coefficient_a", self.coefficient_a, fix="use 0.965 (internal contact)")
+        check_positive(type(self).__name__, "coefficient_b", self.coefficient_b, fix="use 0.0965 (internal contact)")
         if self.exponent is not None:
-            check_positive(self.exponent, "exponent", "pass n > 0, or None for the fit")
-        check_positive(self.fit_length_unit, "fit_length_unit", "use 1e-3 (mm, as published)")
+            check_positive(type(self).__name__, "exponent", self.exponent, fix="pass n > 0, or None for the fit")
+        check_positive(type(self).__name__, "fit_length_unit", self.fit_length_unit, fix="use 1e-3 (mm, as published)")
 
     def effective_exponent(self, geometry: ContactGeometry) -> Float[Array, ""]:
         """The exponent n used for this joint (the fit unless given), dimensionless."""
@@ -121,7 +122,7 @@ class Liu2007(AbstractLNDampedElasticLaw):
     restitution: Float[Array, ""] = eqx.field(converter=_array, default=0.9)
 
     def __check_init__(self):
-        check_restitution(self.restitution)
+        check_restitution(type(self).__name__, self.restitution)
 
     def elastic_force(self, delta: Float[Array, ""], geometry: ContactGeometry) -> Float[Array, ""]:
         """``(π/2) E* h δ √(δ / (2(ΔR + δ)))``, N."""

@@ -20,9 +20,16 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
+from .._checks import check_positive, check_restitution
 from .._smooth import safe_pow, smooth_ramp, smooth_step
-from ._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing, _array
-from ._hertz import _optional_array, check_positive, check_restitution, resolve_stiffness
+from ._base import (
+    AbstractContactLaw,
+    ContactGeometry,
+    ContactKinematics,
+    Smoothing,
+    _array,
+)
+from ._hertz import _optional_array, resolve_stiffness
 
 
 def clamp_nonnegative(x: ArrayLike, width: ArrayLike) -> Float[Array, "..."]:
@@ -143,9 +150,9 @@ class AbstractDampedContactLaw(AbstractContactLaw):
 
     def __check_init__(self):
         if self.stiffness is not None:
-            check_positive(self.stiffness, "stiffness", "pass K in N/m^n, or None for Hertz K")
-        check_positive(self.exponent, "exponent", "pass n > 0 (1.5 for Hertz)")
-        check_restitution(self.restitution)
+            check_positive(type(self).__name__, "stiffness", self.stiffness, fix="pass K in N/m^n, or None for Hertz K")
+        check_positive(type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)")
+        check_restitution(type(self).__name__, self.restitution)
 
     @abc.abstractmethod
     def hysteresis_factor(self) -> Float[Array, ""]:

@@ -20,10 +20,11 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
+from .._checks import check_count, check_positive, check_restitution
 from .._smooth import safe_sqrt
 from ._base import ContactGeometry, _array
 from ._damped import AbstractLNDampedElasticLaw
-from ._hertz import _optional_array, check_count, check_positive, check_restitution
+from ._hertz import _optional_array
 
 # Below this half-angle θ − sin θ is evaluated by its Taylor series to avoid cancellation.
 _SERIES_ANGLE = 1e-2
@@ -114,15 +115,11 @@ def foundation_coefficient(
 
 
 def _check_foundation(law) -> None:
-    check_restitution(law.restitution)
+    check_restitution(type(law).__name__, law.restitution)
     if law.layer_thickness is not None:
-        check_positive(
-            law.layer_thickness, "layer_thickness", "pass L in m, or None to match Hertz K"
-        )
+        check_positive(type(law).__name__, "layer_thickness", law.layer_thickness, fix="pass L in m, or None to match Hertz K")
     if law.foundation_modulus is not None:
-        check_positive(
-            law.foundation_modulus, "foundation_modulus", "pass K_EF in Pa, or None for bearing's"
-        )
+        check_positive(type(law).__name__, "foundation_modulus", law.foundation_modulus, fix="pass K_EF in Pa, or None for bearing's")
 
 
 class ElasticFoundation(AbstractLNDampedElasticLaw):
@@ -190,7 +187,7 @@ class ElasticFoundationDiscrete(AbstractLNDampedElasticLaw):
 
     def __check_init__(self):
         _check_foundation(self)
-        check_count(self.num_elements, "num_elements (m2)")
+        check_count(type(self).__name__, "num_elements (m2)", self.num_elements)
 
     def elastic_force(self, delta: Float[Array, ""], geometry: ContactGeometry) -> Float[Array, ""]:
         """Elastic element sum at smooth penetration ``delta >= 0``, N."""

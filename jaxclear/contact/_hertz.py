@@ -1,67 +1,26 @@
-"""Hertz point contact law (MODEL.md §3) and the construction-time parameter checks shared by
-the contact and friction laws.
+"""Hertz point contact law (MODEL.md §3) and the stiffness helpers shared by the contact laws.
 
-The checks run only on concrete values (Python/NumPy/JAX arrays); when a law is built inside
-``jit`` or ``vmap`` its leaves are tracers and the checks are skipped.
+Parameter checks come from ``jaxclear._checks`` (skipped for traced values inside ``jit``/``vmap``).
 """
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array, Float
 
+from .._checks import check_positive
 from .._smooth import safe_pow, smooth_ramp
-from ._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing, _array
+from ._base import (
+    AbstractContactLaw,
+    ContactGeometry,
+    ContactKinematics,
+    Smoothing,
+    _array,
+)
 
 
 def _optional_array(x):
     """Converter for parameters where ``None`` means "derive from the geometry"."""
     return None if x is None else _array(x)
-
-
-def _concrete(x) -> np.ndarray | None:
-    """NumPy value of ``x``, or ``None`` when ``x`` is traced (inside jit/vmap)."""
-    try:
-        return np.asarray(x)
-    except (jax.errors.TracerArrayConversionError, jax.errors.ConcretizationTypeError):
-        return None
-
-
-def _fail(value, name: str, requirement: str, fix: str) -> None:
-    raise ValueError(f"{name} must be {requirement}, got {value}: {fix}")
-
-
-def check_positive(value, name: str, fix: str = "pass a positive value in SI units") -> None:
-    """Raise ``ValueError`` naming ``name`` unless the concrete ``value`` is finite and ``> 0``."""
-    v = _concrete(value)
-    if v is not None and not np.all(np.isfinite(v) & (v > 0)):
-        _fail(v, name, "finite and > 0", fix)
-
-
-def check_nonnegative(value, name: str, fix: str = "pass a value >= 0 in SI units") -> None:
-    """Raise ``ValueError`` naming ``name`` unless the concrete ``value`` is finite and ``>= 0``."""
-    v = _concrete(value)
-    if v is not None and not np.all(np.isfinite(v) & (v >= 0)):
-        _fail(v, name, "finite and >= 0", fix)
-
-
-def check_restitution(value, name: str = "restitution") -> None:
-    """Raise ``ValueError`` unless the concrete coefficient of restitution is in (0, 1]."""
-    v = _concrete(value)
-    if v is not None and not np.all((v > 0) & (v <= 1)):
-        _fail(
-            v,
-            name,
-            "in (0, 1]",
-            "use 1 for a perfectly elastic contact and e.g. 0.9 for steel on steel",
-        )
-
-
-def check_count(value, name: str) -> None:
-    """Raise ``ValueError`` unless ``value`` is a Python integer ``>= 1`` (a static count)."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        _fail(value, name, "an integer >= 1", "pass a positive whole number")
 
 
 def resolve_stiffness(
@@ -85,8 +44,8 @@ class Hertz(AbstractContactLaw):
 
     def __check_init__(self):
         if self.stiffness is not None:
-            check_positive(self.stiffness, "stiffness", "pass K in N/m^n, or None for Hertz K")
-        check_positive(self.exponent, "exponent", "pass n > 0 (1.5 for Hertz)")
+            check_positive(type(self).__name__, "stiffness", self.stiffness, fix="pass K in N/m^n, or None for Hertz K")
+        check_positive(type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)")
 
     def __call__(
         self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing

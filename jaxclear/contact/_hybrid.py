@@ -27,15 +27,22 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
+from .._checks import check_count, check_positive, check_restitution
 from .._smooth import smooth_max, smooth_ramp
-from ._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing, _array
+from ._base import (
+    AbstractContactLaw,
+    ContactGeometry,
+    ContactKinematics,
+    Smoothing,
+    _array,
+)
 from ._damped import clamp_nonnegative, lankarani_nikravesh_hysteresis
 from ._foundation import (
     contact_half_angle,
     foundation_coefficient,
     local_penetration,
 )
-from ._hertz import _optional_array, check_count, check_positive, check_restitution
+from ._hertz import _optional_array
 
 
 class Hybrid(AbstractContactLaw):
@@ -68,24 +75,18 @@ class Hybrid(AbstractContactLaw):
     )
 
     def __check_init__(self):
-        check_restitution(self.restitution)
-        check_count(self.num_gauss_points, "num_gauss_points (m1)")
-        check_count(self.num_elements, "num_elements (m2)")
+        check_restitution(type(self).__name__, self.restitution)
+        check_count(type(self).__name__, "num_gauss_points (m1)", self.num_gauss_points)
+        check_count(type(self).__name__, "num_elements (m2)", self.num_elements)
         if not isinstance(self.damping_modification, bool):
             raise ValueError(
                 f"damping_modification must be a bool, got {self.damping_modification!r}: "
                 "pass True (Bai & Zhao factor) or False (plain L-N)"
             )
         if self.layer_thickness is not None:
-            check_positive(
-                self.layer_thickness, "layer_thickness", "pass L in m, or None to match Hertz K"
-            )
+            check_positive(type(self).__name__, "layer_thickness", self.layer_thickness, fix="pass L in m, or None to match Hertz K")
         if self.foundation_modulus is not None:
-            check_positive(
-                self.foundation_modulus,
-                "foundation_modulus",
-                "pass K_EF in Pa, or None for the bearing's material",
-            )
+            check_positive(type(self).__name__, "foundation_modulus", self.foundation_modulus, fix="pass K_EF in Pa, or None for the bearing's material")
 
     def hysteresis_factor(self) -> Float[Array, ""]:
         """χ̂ = 3(1 − c_e²)/4, times e^{2(1 − c_e)} with the damping modification."""

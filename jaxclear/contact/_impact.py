@@ -8,10 +8,17 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._checks import check_nonnegative, check_positive
 from .._smooth import safe_pow, smooth_ramp, smooth_step
-from ._base import AbstractContactLaw, ContactGeometry, ContactKinematics, Smoothing, _array
+from ._base import (
+    AbstractContactLaw,
+    ContactGeometry,
+    ContactKinematics,
+    Smoothing,
+    _array,
+)
 from ._damped import clamp_nonnegative
-from ._hertz import _optional_array, check_nonnegative, check_positive, resolve_stiffness
+from ._hertz import _optional_array, resolve_stiffness
 
 
 class AdamsImpact(AbstractContactLaw):
@@ -41,14 +48,10 @@ class AdamsImpact(AbstractContactLaw):
 
     def __check_init__(self):
         if self.stiffness is not None:
-            check_positive(self.stiffness, "stiffness", "pass K in N/m^e, or None for Hertz K")
-        check_positive(self.exponent, "exponent", "pass e > 0 (1.5 for Hertz)")
-        check_nonnegative(self.max_damping, "max_damping", "pass c_max >= 0 in N s/m")
-        check_positive(
-            self.max_damping_penetration,
-            "max_damping_penetration",
-            "pass d_max > 0 in m (e.g. 1e-5)",
-        )
+            check_positive(type(self).__name__, "stiffness", self.stiffness, fix="pass K in N/m^e, or None for Hertz K")
+        check_positive(type(self).__name__, "exponent", self.exponent, fix="pass e > 0 (1.5 for Hertz)")
+        check_nonnegative(type(self).__name__, "max_damping", self.max_damping, fix="pass c_max >= 0 in N s/m")
+        check_positive(type(self).__name__, "max_damping_penetration", self.max_damping_penetration, fix="pass d_max > 0 in m (e.g. 1e-5)")
 
     def __call__(
         self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing

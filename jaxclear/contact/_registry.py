@@ -1,8 +1,6 @@
 """Contact laws by kebab-case name, for configuration files and the command line."""
 
-import types
-
-from .._checks import build_from_registry
+from .._registry import Registry
 from ._base import AbstractContactLaw
 from ._cylindrical import Liu2007, Pereira2011
 from ._damped import Flores, Gonthier, HuntCrossley, LankaraniNikravesh, ZhiyingQishao
@@ -11,7 +9,8 @@ from ._hertz import Hertz
 from ._hybrid import Hybrid
 from ._impact import AdamsImpact
 
-CONTACT_LAWS: types.MappingProxyType[str, type[AbstractContactLaw]] = types.MappingProxyType(
+CONTACT_LAWS: Registry[AbstractContactLaw] = Registry(
+    "contact law",
     {
         "hertz": Hertz,
         "lankarani-nikravesh": LankaraniNikravesh,
@@ -27,7 +26,7 @@ CONTACT_LAWS: types.MappingProxyType[str, type[AbstractContactLaw]] = types.Mapp
         "hybrid": Hybrid,
     }
 )
-"""Read-only mapping from registry name to contact law class."""
+"""Read-only mapping from registry name to contact law class (``jaxclear._registry.Registry``)."""
 
 
 def contact_law_from_name(name: str, **params) -> AbstractContactLaw:
@@ -44,4 +43,4 @@ def contact_law_from_name(name: str, **params) -> AbstractContactLaw:
         ValueError: ``name`` is not registered (the message lists the valid names), or a
             parameter is invalid.
     """
-    return build_from_registry(CONTACT_LAWS, "contact law", name, params)
+    return CONTACT_LAWS.build(name, **params)

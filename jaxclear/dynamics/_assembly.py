@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import AssemblyError
+from . import _clearance as clearance
 from ._constraints import constraints
 
 NEWTON_ITERATIONS = 40
@@ -22,10 +23,7 @@ STEP_LENGTHS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])  # damped Newton step l
 def assembly_constraints(mechanism, q, t):
     """Φ plus the clearance joints' assembly rows (journal at its initial eccentricity)."""
     rows = [constraints(mechanism, q, t)]
-    for element in mechanism.force_elements:
-        fn = getattr(element, "assembly_constraint", None)
-        if fn is not None:
-            rows.append(fn(mechanism.index, q, t))
+    rows += [clearance.assembly_constraint(joint, mechanism.index, q, t) for joint in mechanism.clearance_joints]
     return jnp.concatenate(rows)
 
 
@@ -34,9 +32,11 @@ def assembly_labels(mechanism) -> list[str]:
     labels = []
     for c in mechanism.constraint_elements:
         labels += [f"{type(c).__name__} {c.name!r} row {k}" for k in range(c.num_equations)]
-    for e in mechanism.force_elements:
-        if getattr(e, "assembly_constraint", None) is not None:
-            labels += [f"{type(e).__name__} {e.name!r} (centred journal) row {k}" for k in range(2)]
+    for joint in mechanism.clearance_joints:
+        labels += [
+            f"{type(joint).__name__} {joint.name!r} (journal at its initial eccentricity) row {k}"
+            for k in range(clearance.ASSEMBLY_EQUATIONS)
+        ]
     return labels
 
 

@@ -8,30 +8,66 @@ positive definite Schur complement S = Φ_q M⁻¹ Φ_qᵀ (MODEL.md §5b):
 λ = S⁻¹ (Φ_q M⁻¹ Q − rhs), q̈ = M⁻¹ (Q − Φ_qᵀ λ).
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import jax.scipy.linalg as jsl
 import numpy as np
 from jaxtyping import Array, Float
 
-from ._batched import batched_force_and_cache, batched_state_rates, batched_stiff_rates, groups
+from . import _clearance as clearance
+from ._batched import (
+    batched_force_and_cache,
+    batched_state_rates,
+    batched_stiff_rates,
+    groups,
+)
 from ._constraints import constraint_jacobian, constraints, gamma
 
 
+class Evaluation(eqx.Module):
+    """Everything the right-hand side computes at (t, y) (``evaluate``).
+
+    Attributes:
+        q, qd, qdd: coordinates, velocities and accelerations (n,).
+        multipliers: Lagrange multipliers λ (m,) in ``mechanism.constraint_elements`` row order.
+        phi, phi_dot: position and velocity constraint residuals Φ, Φ̇ (m,).
+        forces: generalised forces Q (n,), gravity and force elements.
+        states: {force element name: internal state}.
+        state_rates: {force element name: internal-state rate}.
+    """
+
+    q: Float[Array, " n"]
+    qd: Float[Array, " n"]
+    qdd: Float[Array, " n"]
+    multipliers: Float[Array, " m"]
+    phi: Float[Array, " m"]
+    phi_dot: Float[Array, " m"]
+    forces: Float[Array, " n"]
+    states: dict[str, Float[Array, " s"]]
+    state_rates: dict[str, Float[Array, " s"]]
+
+
 def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = None) -> Float[Array, " n"]:
-    """Q: gravity plus every force element (applied forces, springs, clearance contacts).
+    """Q: gravity plus every force element (applied forces, springs), then the clearance contacts.
 
     Same-kind clearance joints are evaluated together (``_batched``). If ``caches`` is a dict, each
-    group's cache (for the state rates) is stored in it under the group's position.
+    element's cache (for the state rates) is stored in it under the element's name, each group's
+    under the group's position.
     """
     m = jnp.stack([b.mass for b in mechanism.bodies])
     grav = jnp.concatenate([m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1)
     total = grav.reshape(-1).astype(q.dtype)
+    for element in mechanism.forces:
+        force, cache = element.force_and_cache(mechanism.index, q, qd, t, states[element.name])
+        total = total + force
+        if caches is not None:
+            caches[element.name] = cache
     for k, group in enumerate(groups(mechanism)):
         if len(group) > 1:
             force, cache = batched_force_and_cache(mechanism, group, q, qd, t, states)
         else:
-            force, cache = group[0].force_and_cache(mechanism.index, q, qd, t, states[group[0].name])
+            force, cache = clearance.force_and_cache(group[0], mechanism.index, q, qd, states[group[0].name])
         total = total + force
         if caches is not None:
             caches[k] = cache
@@ -88,23 +124,22 @@ def spd_solve(matrix, rhs):
     return aug[:, m]
 
 
-def evaluate(mechanism, t, y):
-    """Everything the right-hand side computes at (t, y), as a dict.
-
-    Keys: ``q, qd, qdd, multipliers, phi, phi_dot, forces, states, state_rates``.
-    """
+def evaluate(mechanism, t, y) -> Evaluation:
+    """Everything the right-hand side computes at (t, y): an ``Evaluation``."""
     q, qd, states = mechanism.split_state(y)
     caches = {}
     forces = generalized_forces(mechanism, t, q, qd, states, caches)
     qdd, lam, phi, phi_dot = solve_accelerations(mechanism, t, q, qd, forces)
     rates = {}
+    for e in mechanism.forces:
+        rates[e.name] = e.state_derivative_cached(caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name])
     for k, group in enumerate(groups(mechanism)):
         if len(group) > 1:
             rates.update(batched_state_rates(mechanism, group, caches[k], q, qd, qdd, t, states))
         else:
             e = group[0]
-            rates[e.name] = e.state_derivative_cached(caches[k], mechanism.index, q, qd, qdd, t, states[e.name])
-    return dict(
+            rates[e.name] = clearance.state_derivative_cached(e, caches[k], mechanism.index, q, qd, qdd, states[e.name])
+    return Evaluation(
         q=q, qd=qd, qdd=qdd, multipliers=lam, phi=phi, phi_dot=phi_dot, forces=forces, states=states, state_rates=rates
     )
 
@@ -112,7 +147,7 @@ def evaluate(mechanism, t, y):
 def vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """dy/dt for diffrax: (q̇, q̈, internal state rates)."""
     out = evaluate(mechanism, t, y)
-    parts = [out["qd"], out["qdd"]] + [out["state_rates"][e.name] for e in mechanism.force_elements]
+    parts = [out.qd, out.qdd] + [out.state_rates[e.name] for e in mechanism.force_elements]
     return jnp.concatenate([jnp.reshape(p, (-1,)).astype(y.dtype) for p in parts])
 
 
@@ -120,13 +155,13 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """The stiff part of dy/dt (internal states only), integrated implicitly by IMEX solvers."""
     q, qd, states = mechanism.split_state(y)
     n = mechanism.num_coordinates
-    rates = {}
+    rates = {e.name: e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name]) for e in mechanism.forces}
     for group in groups(mechanism):
         if len(group) > 1:
             rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
         else:
             e = group[0]
-            rates[e.name] = e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name])
+            rates[e.name] = clearance.stiff_state_derivative(e, mechanism.index, q, qd, states[e.name])
     parts = [jnp.zeros((2 * n,), y.dtype)] + [
         jnp.reshape(rates[e.name], (-1,)).astype(y.dtype) for e in mechanism.force_elements
     ]
@@ -158,10 +193,24 @@ def memory_offset_shift(mechanism, y) -> Float[Array, " N"]:
     q, qd, _ = mechanism.split_state(y)
     shift = jnp.zeros_like(y)
     slices = mechanism.state_slices
-    for e in mechanism.force_elements:
-        rows = getattr(e, "memory_state_rows", ())
-        if rows:
-            rate = e.kinematics(mechanism.index, q, qd)["penetration_rate"]
-            for r in rows:
-                shift = shift.at[slices[e.name].start + r].set(rate)
+    for joint in mechanism.clearance_joints:
+        rate = clearance.kinematics(joint, mechanism.index, q, qd).penetration_rate
+        for r in joint.memory_state_rows:
+            shift = shift.at[slices[joint.name].start + r].set(rate)
     return shift
+
+
+def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
+    """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
+    internal = [e.initial_state(mechanism.index, q0, qd0) for e in mechanism.forces]
+    internal += [clearance.initial_state(c, mechanism.index, q0, qd0) for c in mechanism.clearance_joints]
+    parts = [q0, qd0, *internal]
+    return jnp.concatenate([jnp.reshape(jnp.asarray(p, dtype=float), (-1,)) for p in parts])
+
+
+def clearance_outputs(mechanism, evaluation: Evaluation) -> dict[str, "clearance.ClearanceOutputs"]:
+    """{clearance joint name: ``ClearanceOutputs``} at the instant of ``evaluation``."""
+    return {
+        c.name: clearance.outputs(c, mechanism.index, evaluation.q, evaluation.qd, evaluation.states[c.name])
+        for c in mechanism.clearance_joints
+    }

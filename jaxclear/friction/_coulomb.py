@@ -4,9 +4,10 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
+from .._checks import check_nonnegative, check_positive
 from .._smooth import smooth_ramp
 from ..contact._base import Smoothing, _array
-from ..contact._hertz import _optional_array, check_nonnegative, check_positive
+from ..contact._hertz import _optional_array
 from ._base import AbstractFrictionLaw
 
 
@@ -24,13 +25,9 @@ class Coulomb(AbstractFrictionLaw):
     )
 
     def __check_init__(self):
-        check_nonnegative(self.friction_coefficient, "friction_coefficient", "pass μ >= 0")
+        check_nonnegative(type(self).__name__, "friction_coefficient", self.friction_coefficient, fix="pass μ >= 0")
         if self.velocity_tolerance is not None:
-            check_positive(
-                self.velocity_tolerance,
-                "velocity_tolerance",
-                "pass v_ε > 0 in m/s, or None for Smoothing.velocity_width",
-            )
+            check_positive(type(self).__name__, "velocity_tolerance", self.velocity_tolerance, fix="pass v_ε > 0 in m/s, or None for Smoothing.velocity_width")
 
     def force(
         self,
@@ -78,13 +75,9 @@ class ModifiedCoulomb(AbstractFrictionLaw):
     upper_velocity: Float[Array, ""] = eqx.field(converter=_array, default=1e-3)
 
     def __check_init__(self):
-        check_nonnegative(self.friction_coefficient, "friction_coefficient", "pass μ >= 0")
-        check_nonnegative(self.lower_velocity, "lower_velocity", "pass v0 >= 0 in m/s")
-        check_positive(
-            self.upper_velocity - self.lower_velocity,
-            "upper_velocity - lower_velocity",
-            "pass upper_velocity (v1) > lower_velocity (v0)",
-        )
+        check_nonnegative(type(self).__name__, "friction_coefficient", self.friction_coefficient, fix="pass μ >= 0")
+        check_nonnegative(type(self).__name__, "lower_velocity", self.lower_velocity, fix="pass v0 >= 0 in m/s")
+        check_positive(type(self).__name__, "upper_velocity - lower_velocity", self.upper_velocity - self.lower_velocity, fix="pass upper_velocity (v1) > lower_velocity (v0)")
 
     def dynamic_correction(
         self, speed: Float[Array, "..."], smoothing: Smoothing

@@ -1,14 +1,13 @@
 """Friction laws by kebab-case name, for configuration files and the command line."""
 
-import types
-
-from .._checks import build_from_registry
+from .._registry import Registry
 from ._base import AbstractFrictionLaw
 from ._coulomb import Coulomb, ModifiedCoulomb
 from ._lugre import LuGre
 from ._none import NoFriction
 
-FRICTION_LAWS: types.MappingProxyType[str, type[AbstractFrictionLaw]] = types.MappingProxyType(
+FRICTION_LAWS: Registry[AbstractFrictionLaw] = Registry(
+    "friction law",
     {
         "none": NoFriction,
         "coulomb": Coulomb,
@@ -16,7 +15,7 @@ FRICTION_LAWS: types.MappingProxyType[str, type[AbstractFrictionLaw]] = types.Ma
         "lugre": LuGre,
     }
 )
-"""Read-only mapping from registry name to friction law class."""
+"""Read-only mapping from registry name to friction law class (``jaxclear._registry.Registry``)."""
 
 
 def friction_law_from_name(name: str, **params) -> AbstractFrictionLaw:
@@ -33,4 +32,4 @@ def friction_law_from_name(name: str, **params) -> AbstractFrictionLaw:
         ValueError: ``name`` is not registered (the message lists the valid names), or a
             parameter is invalid.
     """
-    return build_from_registry(FRICTION_LAWS, "friction law", name, params)
+    return FRICTION_LAWS.build(name, **params)

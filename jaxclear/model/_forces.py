@@ -1,8 +1,11 @@
 """Force elements: applied forces and torques, linear spring–dampers (MODEL.md §1, Q).
 
 A force element contributes a generalised force vector Q (size of q). Elements with internal
-states (clearance joints: impact-velocity memory, LuGre z) declare ``num_states`` and give their
-time derivatives; those states live in the integrator's state vector.
+states declare ``num_states`` and give their time derivatives; those states live in the
+integrator's state vector. Everything the equations of motion call on an element is declared on
+``AbstractForceElement`` with a default, so a new element overrides only what it uses. Clearance
+joints are not force elements of this kind: they are data (``ClearanceJoint``) whose contact
+physics is computed with the equations of motion (``_clearance.py`` of the next stage).
 """
 
 import abc
@@ -12,12 +15,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_shape
-from .._checks import is_concrete
-from .._errors import ModelError
-from ..dynamics._kinematics import dot2, point_force_to_generalized, point_position, point_velocity
-
-import numpy as np
+from .._checks import check_finite, check_nonnegative, check_shape
+from .._geometry import dot2, point_force_to_generalized, point_position, point_velocity
 
 
 def _array(x):
@@ -28,9 +27,18 @@ Index = Callable[[str], "int | None"]
 
 
 class AbstractForceElement(eqx.Module):
-    """Base of force elements. Subclass and implement ``generalized_force``."""
+    """Base of force elements. Subclass and implement ``bodies`` and ``generalized_force``.
+
+    The other hooks have defaults: no internal states, no potential energy, no work shared
+    between the force and the state rates.
+    """
 
     name: eqx.AbstractVar[str]
+
+    @property
+    @abc.abstractmethod
+    def bodies(self) -> tuple[str, ...]:
+        """Names of the bodies the element acts on (``"ground"`` allowed); checked by ``Mechanism``."""
 
     @property
     def num_states(self) -> int:
@@ -67,6 +75,11 @@ class AbstractForceElement(eqx.Module):
         """
         return jnp.zeros((self.num_states,))
 
+    def potential_energy(self, index: Index, q) -> Float[Array, ""]:
+        """Energy stored in the element at coordinates q, J (default: none; conservative elements
+        override it for ``jaxclear.analysis.potential_energy``)."""
+        return jnp.zeros((), dtype=q.dtype)
+
 
 class AppliedForce(AbstractForceElement):
     """Constant force (global components, N) applied at a body-fixed point (local vector, m)."""
@@ -80,6 +93,10 @@ class AppliedForce(AbstractForceElement):
         for attr in ("point", "force"):
             check_shape(f"AppliedForce {self.name!r}", attr, getattr(self, attr), (2,))
             check_finite(f"AppliedForce {self.name!r}", attr, getattr(self, attr))
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body,)
 
     def generalized_force(self, index, q, qd, t, state):
         i = index(self.body)
@@ -95,6 +112,10 @@ class AppliedTorque(AbstractForceElement):
 
     def __check_init__(self):
         check_finite(f"AppliedTorque {self.name!r}", "torque", self.torque)
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body,)
 
     def generalized_force(self, index, q, qd, t, state):
         i = index(self.body)
@@ -124,11 +145,15 @@ class SpringDamper(AbstractForceElement):
 
     def __check_init__(self):
         owner = f"SpringDamper {self.name!r}"
+        for attr in ("point_i", "point_j"):
+            check_shape(owner, attr, getattr(self, attr), (2,))
+            check_finite(owner, attr, getattr(self, attr))
         for attr in ("stiffness", "damping", "free_length"):
-            value = getattr(self, attr)
-            check_finite(owner, attr, value)
-            if is_concrete(value) and np.any(np.asarray(value) < 0):
-                raise ModelError(f"{owner}: {attr} must be >= 0, got {np.asarray(value)}.")
+            check_nonnegative(owner, attr, getattr(self, attr))
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body_i, self.body_j)
 
     def generalized_force(self, index, q, qd, t, state):
         i, j = index(self.body_i), index(self.body_j)

@@ -3,7 +3,7 @@
 Each joint is an ``eqx.Module`` with static body names and array-valued geometry. The
 mechanism resolves body names to coordinate indices; a joint's ``constraint`` returns its rows of
 Φ. Jacobians and γ are never written here: they come from JAX derivatives of these functions
-(``jaxclear/dynamics/_constraints.py``).
+(``_constraints.py`` beside the equations of motion).
 """
 
 import abc
@@ -15,7 +15,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from .._checks import check_finite, check_shape
-from ..dynamics._kinematics import body_coordinates, dot2, point_position
+from .._geometry import body_coordinates, dot2, point_position
 
 
 def _array(x):

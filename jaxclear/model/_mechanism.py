@@ -10,6 +10,7 @@ from jaxtyping import Array, Float
 from .._checks import check_finite, check_shape
 from .._errors import ModelError
 from ._body import GROUND, Body
+from ._clearance import ClearanceJoint
 from ._forces import AbstractForceElement
 from ._joints import AbstractDriver, AbstractJoint
 
@@ -44,7 +45,7 @@ class Mechanism(eqx.Module):
     joints: tuple[AbstractJoint, ...] = ()
     driver: AbstractDriver | None = None
     forces: tuple[AbstractForceElement, ...] = ()
-    clearance_joints: tuple[AbstractForceElement, ...] = ()
+    clearance_joints: tuple[ClearanceJoint, ...] = ()
     gravity: Float[Array, "2"] = eqx.field(converter=_array, default=(0.0, -9.81))
     baumgarte_alpha: Float[Array, ""] = eqx.field(converter=_array, default=50.0)
     baumgarte_beta: Float[Array, ""] = eqx.field(converter=_array, default=50.0)
@@ -59,13 +60,26 @@ class Mechanism(eqx.Module):
         dupes = sorted({x for x in labels if labels.count(x) > 1})
         if dupes:
             raise ModelError(f"Mechanism: joint/force names must be unique, repeated: {dupes}.")
+        for field, kind, members in (
+            ("joints", AbstractJoint, self.joints),
+            ("forces", AbstractForceElement, self.forces),
+            ("clearance_joints", ClearanceJoint, self.clearance_joints),
+        ):
+            for member in members:
+                if not isinstance(member, kind):
+                    raise TypeError(
+                        f"Mechanism: {field} holds a {type(member).__name__}; it takes {kind.__name__}s"
+                        + (" (clearance joints go in clearance_joints)" if isinstance(member, ClearanceJoint) else "")
+                        + "."
+                    )
+        if self.driver is not None and not isinstance(self.driver, AbstractDriver):
+            raise TypeError(f"Mechanism: driver must be an AbstractDriver, got {type(self.driver).__name__}.")
         known = set(names) | {GROUND}
         for element in (*self.constraint_elements, *self.force_elements):
-            for attr in ("body", "body_i", "body_j", "relative_to", "bearing_body", "journal_body"):
-                body = getattr(element, attr, None)
-                if isinstance(body, str) and body not in known:
+            for body in element.bodies:
+                if body not in known:
                     raise ModelError(
-                        f"{type(element).__name__} {element.name!r}: {attr}={body!r} is not a body of the "
+                        f"{type(element).__name__} {element.name!r}: body {body!r} is not a body of the "
                         f"mechanism; known bodies: {sorted(known)}."
                     )
         check_shape("Mechanism", "gravity", self.gravity, (2,))
@@ -108,7 +122,8 @@ class Mechanism(eqx.Module):
         return sum(c.num_equations for c in self.constraint_elements)
 
     @property
-    def force_elements(self) -> tuple:
+    def force_elements(self) -> tuple[AbstractForceElement | ClearanceJoint, ...]:
+        """Force elements, then clearance joints: the order of the internal states in y."""
         return tuple(self.forces) + tuple(self.clearance_joints)
 
     @property
@@ -125,9 +140,8 @@ class Mechanism(eqx.Module):
         """Boolean mask (state_size,) of the rows of y that hold a clearance joint's impact-velocity
         memory (m, or its offset u = m − δ̇ in ``with_memory_offset``). NumPy, static."""
         mask = np.zeros(self.state_size, dtype=bool)
-        for f in self.force_elements:
-            rows = getattr(f, "memory_state_rows", ())
-            mask[[self.state_slices[f.name].start + r for r in rows]] = True
+        for joint in self.clearance_joints:
+            mask[[self.state_slices[joint.name].start + r for r in joint.memory_state_rows]] = True
         return mask
 
     @property
@@ -160,13 +174,10 @@ class Mechanism(eqx.Module):
     def with_memory_offset(self, offset: bool = True) -> "Mechanism":
         """Copy whose clearance joints carry the impact memory as u = m − δ̇ (``offset=True``) or as m.
 
-        The offset form is what ``lawson-tsit5`` integrates (``dynamics._impact_memory``); states
-        of the two forms convert with ``dynamics._equations.memory_offset_shift``.
+        The offset form is what ``lawson-tsit5`` integrates (see ``_impact_memory.py`` beside the
+        equations of motion; ``memory_offset_shift`` there converts states between the two forms).
         """
-        joints = tuple(
-            dataclasses.replace(c, memory_offset=offset) if hasattr(c, "memory_offset") else c
-            for c in self.clearance_joints
-        )
+        joints = tuple(dataclasses.replace(c, memory_offset=offset) for c in self.clearance_joints)
         return eqx.tree_at(lambda m: m.clearance_joints, self, joints)
 
     def replace_bodies(self, **changes):
