@@ -42,7 +42,7 @@ class DiagonalNewton(optx.AbstractRootFinder):
             rows of an IMEX stage equation in f-space); their Jacobian diagonal is 1.
         kappa: early-convergence factor (as ``VeryChord``).
         affine: the stiff rates are affine in the implicit unknowns (the contract of
-            ``stiff_state_derivative``, checked by tests/test_imex.py): one Newton step from a
+            ``stiff_state_derivative``, checked by tests/test_fast_paths.py): one Newton step from a
             start whose explicit rows are exact (zero) is then the solution, and the iteration
             stops after it (failing only on non-finite values). ``False``: iterate and test
             convergence as ``VeryChord`` does (two evaluations per stage at least).
