@@ -5,6 +5,8 @@ friction, Tsit5) is compiled once per module and shared: clearance, stiffness an
 array leaves, so changing them does not recompile.
 """
 
+import dataclasses
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -274,3 +276,58 @@ def test_bad_journal_body():
     with pytest.raises(TypeError, match="unknown option"):
         slider_crank(clearance_joints={"B": {"journal": "rod"}})
     assert jaxclear.ClearanceJoint is ClearanceJoint
+
+
+PENETRATION = 2e-6  # m into the wall: a contact force of order 1e2 N with the Hertz stiffness
+
+
+def test_journal_body_choice_gives_the_same_generalized_force():
+    """At one instant with the journal pressed into the wall, the pin on the rod or on the slider
+    gives the same generalised contact force on every body (point law, no friction: the force acts
+    along the line of centres) and eccentricities of opposite sign."""
+    mechs = [
+        slider_crank(
+            clearance_joints={"B": {"journal_body": journal}},
+            contact_law=LankaraniNikravesh(stiffness=HERTZ_K, restitution=0.9),
+            friction_law=NoFriction(),
+        )
+        for journal in ("slider", "rod")
+    ]
+    y0 = assemble(mechs[0])
+    n = mechs[0].num_coordinates
+    q, qd, state = y0[:n], y0[n : 2 * n], y0[2 * n :]
+    slider, rod = 3 * mechs[0].index("slider"), 3 * mechs[0].index("rod")
+    q = q.at[slider + 1].add(5e-4 + PENETRATION)  # slider (default journal) pushed up by c + δ
+    qd = qd.at[slider + 1].set(0.3)  # approaching the wall
+    state = state.at[0].set(0.3)  # impact memory: the approach speed
+    forces, kins = [], []
+    for mech in mechs:
+        joint = mech.clearance_joints[0]
+        forces.append(np.asarray(clearance.generalized_force(joint, mech.index, q, qd, state)))
+        kins.append(clearance.kinematics(joint, mech.index, q, qd))
+    default, swapped = kins
+    np.testing.assert_allclose(swapped.eccentricity_vector, -default.eccentricity_vector, rtol=1e-12)
+    np.testing.assert_allclose(swapped.penetration, default.penetration, rtol=1e-9)
+    np.testing.assert_allclose(default.penetration, PENETRATION, rtol=1e-6)
+    np.testing.assert_allclose(swapped.penetration_rate, default.penetration_rate, rtol=1e-12)
+    assert forces[0][slider + 1] < -1.0  # the wall pushes the slider back down
+    np.testing.assert_allclose(forces[1], forces[0], rtol=1e-9, atol=1e-9 * np.max(np.abs(forces[0])))
+    assert np.all(forces[0][: 3 * mechs[0].index("crank") + 3] == 0.0) and forces[0][rod + 1] > 1.0
+
+
+def test_clearance_outputs_attribute_and_mapping_access():
+    mech = slider_crank(clearance_joints="B", friction_law=LuGre())
+    y0 = assemble(mech)
+    n = mech.num_coordinates
+    joint = mech.clearance_joints[0]
+    out = clearance.outputs(joint, mech.index, y0[:n], y0[n : 2 * n], y0[2 * n :])
+    assert isinstance(out, jaxclear.dynamics.ClearanceOutputs)
+    assert out.keys()[-1] == "friction_state" and "friction_state" in out and len(out) == 10
+    assert out["normal_force"] is out.normal_force
+    assert dict(out.items())["ecc_x"] is out.ecc_x and list(out) == list(out.keys())
+    frictionless = clearance.outputs(
+        dataclasses.replace(joint, friction_law=NoFriction()), mech.index, y0[:n], y0[n : 2 * n], y0[2 * n : 2 * n + 1]
+    )
+    assert "friction_state" not in frictionless and frictionless.friction_state is None
+    with pytest.raises(KeyError, match="'friction_state' is not an output.*normal_force"):
+        frictionless["friction_state"]

@@ -3,6 +3,7 @@
 Each mechanism here is tiny, so its compile is cheap; each is checked against a closed form.
 """
 
+import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -113,3 +114,52 @@ def test_spring_damper_rejects_negative_parameters(bad):
     args = dict(stiffness=1.0, damping=0.0, free_length=0.0) | bad
     with pytest.raises(jaxclear.ModelError, match=next(iter(bad))):
         jaxclear.SpringDamper("s", "ground", (0.0, 0.0), "block", (0.0, 0.0), **args)
+
+
+def _block():
+    return jaxclear.Body("block", 1.0, 0.01, position=(0.1, 0.0, 0.0))
+
+
+def test_mechanism_checks_element_bodies_and_kinds():
+    spring = jaxclear.SpringDamper("s", "ground", (0.0, 0.0), "blok", (0.0, 0.0), stiffness=1.0)
+    assert spring.bodies == ("ground", "blok")
+    with pytest.raises(jaxclear.ModelError, match=r"SpringDamper 's': body 'blok' is not a body.*'block'"):
+        jaxclear.Mechanism(bodies=(_block(),), forces=(spring,))
+    pin = jaxclear.ClearanceJoint.replacing(jaxclear.RevoluteJoint("P", "ground", (0.1, 0.0), "block", (0.0, 0.0)))
+    with pytest.raises(TypeError, match="forces holds a ClearanceJoint.*clearance joints go in clearance_joints"):
+        jaxclear.Mechanism(bodies=(_block(),), forces=(pin,))
+    with pytest.raises(TypeError, match="clearance_joints holds a SpringDamper"):
+        jaxclear.Mechanism(bodies=(_block(),), clearance_joints=(spring,))
+
+
+class _Push(jaxclear.AbstractForceElement):
+    """A force element that declares only what it must: the other hooks keep their defaults."""
+
+    name: str = eqx.field(static=True, default="push")
+
+    @property
+    def bodies(self):
+        return ("block",)
+
+    def generalized_force(self, index, q, qd, t, state):
+        return jnp.zeros_like(q).at[3 * index("block")].set(2.0)
+
+
+def test_force_element_hook_defaults():
+    mech = jaxclear.Mechanism(bodies=(_block(),), forces=(_Push(),), gravity=(0.0, 0.0))
+    assert mech.state_size == 6 and not np.any(mech.memory_rows)
+    q = jnp.asarray([0.1, 0.0, 0.0])
+    push = mech.forces[0]
+    assert push.initial_state(mech.index, q, q).shape == (0,)
+    assert float(push.potential_energy(mech.index, q)) == 0.0
+    traj = jaxclear.simulate(mech, 0.5, num_points=3, solver=SOLVER)
+    np.testing.assert_allclose(np.asarray(traj.qdd[:, 0]), 2.0, rtol=1e-12)  # F / m
+    with pytest.raises(TypeError, match="abstract"):
+
+        class _NoBodies(jaxclear.AbstractForceElement):
+            name: str = "x"
+
+            def generalized_force(self, index, q, qd, t, state):
+                return jnp.zeros_like(q)
+
+        _NoBodies()

@@ -33,7 +33,8 @@ class Mechanism(eqx.Module):
         joints: ideal joints (revolute, translational).
         driver: optional driving constraint; its multiplier gives the input torque.
         forces: applied forces, torques, spring–dampers.
-        clearance_joints: revolute clearance joints (force elements with internal states).
+        clearance_joints: revolute clearance joints (``ClearanceJoint``; contact forces and
+            internal states: impact memory, friction states).
         gravity: acceleration of gravity (g_x, g_y), m/s²; default (0, −9.81).
         baumgarte_alpha, baumgarte_beta: Baumgarte stabilisation α, β, 1/s (default 50, 50). The
             literature value 5 (MODEL.md §1) lets the benchmark slider–crank at 5000 rpm drift to
