@@ -9,7 +9,10 @@ cheap clearance run (joint B only, Lankarani-Nikravesh contact, no friction, exp
 import csv
 import json
 import math
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +20,7 @@ import pytest
 
 import jaxclear
 import jaxclear._simulate
+import jaxclear.cli._run
 from jaxclear import cli
 from jaxclear.cli._config import resolve_settings
 from jaxclear.cli._main import build_parser
@@ -287,6 +291,23 @@ BAD_CONFIGS = {
     "clearance joints not a string": ('[clearance]\njoints = ["B"]\n', "must be a string"),
     "unknown contact law in file": ('[clearance]\ncontact = "hertzian"\n', "is unknown; choose one of"),
     "non-integer elements": ("[clearance]\nelements = 2.5\n", "must be an integer"),
+    # issue 9 item 7
+    "continuous fraction above one": ("[clearance]\ncontinuous_fraction = 1.5\n", "continuous_fraction in"),
+    "empty clearance joints in file": ('[clearance]\njoints = ""\n', "use 'none' for ideal joints"),
+    "implausible rpm in file": ("[mechanism]\nrpm = 1e9\n", "is implausible (at most 100000"),
+    # start-up options
+    "unknown start": ('[simulation]\nstart = "middle"\n', "must be one of wall, centred"),
+    "skip all revolutions": ("[simulation]\nrevolutions = 1\nskip_revolutions = 1\n", "must be smaller than revolutions"),
+    # per-joint clearance tables and mechanism choice
+    "per-joint table of an ideal joint": ('[clearance]\njoints = "B"\n[clearance.A]\nclearance = 1e-4\n', "[clearance.A]"),
+    "per-joint table of an unknown joint": ('[clearance.C]\nclearance = 1e-4\n', "joint 'C' is not a joint of the mechanism"),
+    "unknown per-joint key": ("[clearance.B]\nradius = 0.01\n", "unknown key 'radius' in [clearance.B]"),
+    "journal body not of the joint": ('[clearance.B]\njournal_body = "crank"\n', "journal_body='crank' is not a body of joint 'B'"),
+    "journal body shared": ('[clearance]\njournal_body = "rod"\n', "belongs in a per-joint table"),
+    "clearance on a translational joint": ('[clearance]\njoints = "slider_guide"\n', "'slider_guide' is a TranslationalJoint; clearance applies to revolute joints only"),
+    "key of another mechanism": ('[mechanism]\nname = "four_bar"\nrod_length = 0.2\n', "rod_length applies to slider_crank only"),
+    "unknown mechanism": ('[mechanism]\nname = "crank_rocker"\n', "must be one of slider_crank, four_bar, custom"),
+    "four-bar joint on the slider-crank": ('[clearance]\njoints = "O4"\n', "among O, A, B"),
 }
 BAD_OPTIONS = {
     "unknown option": (["--bogus"], "unrecognized arguments: --bogus"),
@@ -312,6 +333,15 @@ BAD_OPTIONS = {
     "zero restitution": (["--restitution", "0"], "--restitution must be positive"),
     "negative friction coefficient": (["--friction-coefficient", "-0.1"], "must be zero or positive"),
     "friction coefficient without friction": (["--friction", "none", "--friction-coefficient", "0.1"], "does not apply"),
+    # issue 9 item 7
+    "empty clearance joints": (["--clearance-joints="], "--clearance-joints is empty; use 'none' for ideal joints"),
+    "empty output folder": (["--out="], "--out is empty; give the path of an output folder"),
+    "implausible rpm": (["--rpm", "1e9"], "--rpm = 1e+09 rev/min is implausible (at most 100000"),
+    "negative skip": (["--skip-revolutions", "-1"], "--skip-revolutions must be zero or positive"),
+    "skip beyond the run": (["--revolutions", "1", "--skip-revolutions", "2"], "--skip-revolutions: skip_revolutions (2) must be smaller"),
+    "unknown start": (["--start", "middle"], "--start must be one of wall, centred"),
+    "unknown mechanism": (["--mechanism", "crank_rocker"], "--mechanism must be one of slider_crank, four_bar, custom"),
+    "four-bar clearance joint names": (["--mechanism", "four_bar", "--clearance-joints", "O"], "among O2, A, B, O4"),
 }
 
 
@@ -332,14 +362,16 @@ def test_bad_config_file(case, tmp_path, capsys):
     text, match = BAD_CONFIGS[case]
     config = tmp_path / "bad.toml"
     config.write_text(text)
-    assert_usage_error(capsys, ["run", str(config), *SHORT, "--out", str(tmp_path / "out")], match)
+    # no other options: the file alone decides (these cases fail before any solve)
+    assert_usage_error(capsys, ["run", str(config), "--no-progress", "--out", str(tmp_path / "out")], match)
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("case", list(BAD_OPTIONS))
 def test_bad_option(case, tmp_path, capsys):
     args, match = BAD_OPTIONS[case]
-    assert_usage_error(capsys, ["run", *args, "--out", str(tmp_path / "out")], match)
+    assert_usage_error(capsys, ["run", "--out", str(tmp_path / "out"), *args], match)  # args last: '--out=' wins
+    assert not (tmp_path / "out").exists(), "bad input must be found before the output folder is made"
 
 
 def test_no_command(capsys):
@@ -359,7 +391,7 @@ def test_simulation_failure_exits_1(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(jaxclear._simulate, "simulate", failing)
     with pytest.raises(SystemExit) as exc:
-        cli.main(["run", *SHORT, "--out", str(tmp_path / "out")])
+        cli.main(["run", *SHORT, "--start", "centred", "--out", str(tmp_path / "out")])
     assert exc.value.code == 1
     lines = capsys.readouterr().err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("jaxclear: error: simulation failed"), lines
@@ -389,7 +421,202 @@ def test_unexpected_error_is_one_line(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(jaxclear._simulate, "simulate", broken)
     with pytest.raises(SystemExit) as exc:
-        cli.main(["run", *SHORT, "--out", str(tmp_path / "out")])
+        cli.main(["run", *SHORT, "--start", "centred", "--out", str(tmp_path / "out")])
     assert exc.value.code == 1
     lines = capsys.readouterr().err.splitlines()
     assert lines == ["jaxclear: error: RuntimeError: something unexpected (set JAXCLEAR_TRACEBACK=1 for the traceback)"]
+
+
+def test_empty_output_folder_in_file(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    config = tmp_path / "c.toml"
+    config.write_text('[output]\ndirectory = ""\n')
+    assert_usage_error(capsys, ["run", str(config)], "[output] directory in")
+    assert list(tmp_path.iterdir()) == [config]
+
+
+def test_non_utf8_config(tmp_path, capsys):
+    config = tmp_path / "latin1.toml"
+    config.write_bytes("# Kurbeltrieb, Drehzahl in 1/min (Gleitlager aus Stahl, \u00e4)\n[mechanism]\nrpm = 3000\n".encode("latin-1"))
+    assert_usage_error(capsys, ["run", str(config), "--out", str(tmp_path / "out")], "is not UTF-8 text (byte 0xe4 on line 1)")
+    assert not (tmp_path / "out").exists()
+
+
+def test_output_folder_under_a_file(tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    out = tmp_path / "file" / "out"
+    assert_usage_error(capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], "is not writable (Not a directory)")
+
+
+def test_read_only_output_folder(tmp_path, capsys, monkeypatch):
+    # A read-only folder as seen by the process (root may write anywhere, so the refusal is simulated
+    # at the write test itself): refused before any solve, so no simulate call happens.
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    def no_solve(*args, **kwargs):
+        raise AssertionError("simulate was called before the output folder was checked")
+
+    monkeypatch.setattr(jaxclear.cli._run.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(jaxclear._simulate, "simulate", no_solve)
+    out = tmp_path / "out"
+    assert_usage_error(capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], f"--out {str(out)!r} is not writable (Permission denied)")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_output_folder_chmod(tmp_path, capsys):
+    out = tmp_path / "ro"
+    out.mkdir()
+    out.chmod(0o500)
+    try:
+        assert_usage_error(capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], "is not writable")
+    finally:
+        out.chmod(0o700)
+
+
+def test_max_steps_one_fails_cleanly(tmp_path, capsys):
+    """``--max-steps 1``: exit 1, the message says why and the fix, no inf/nan rows, no plots."""
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["run", *SHORT, *IDEAL, "--max-steps", "1", "--out", str(out)])
+    assert exc.value.code == 1
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and "maximum number of solver steps" in lines[0] and "raise max_steps" in lines[0], lines
+    info = json.loads((out / "run.json").read_text())
+    assert info["status"] == "failed" and "raise max_steps" in info["error"]
+    # One (rejected) step reaches no saved instant with finite values: only run.json is written.
+    assert info["stats"]["num_accepted_steps"] == 0
+    assert sorted(p.name for p in out.iterdir()) == ["run.json"] and info["files"] == ["run.json"]
+    assert "No instant was reached" in lines[0]
+
+
+def test_import_starts_no_jax_backend():
+    """XLA reads XLA_FLAGS when the backend starts: importing the CLI must not start it, or the
+    fast-compile flag that ``main`` sets would come too late (an unknown flag set after the import
+    still makes XLA abort at the first array)."""
+    code = (
+        "import os, jaxclear.cli\n"
+        "os.environ['XLA_FLAGS'] = '--xla_jaxclear_no_such_flag'\n"
+        "import jax.numpy as jnp\n"
+        "jnp.zeros(1).block_until_ready()\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert result.returncode != 0, "the flag was ignored: the backend had started during the import"
+    assert "xla_jaxclear_no_such_flag" in result.stderr
+
+
+# --- mechanisms from the config file --------------------------------------------------------------
+
+EXAMPLES = Path(__file__).parents[1] / "examples"
+
+
+def settings_of(*argv):
+    return resolve_settings(build_parser().parse_args(["run", *argv]))
+
+
+def test_per_joint_clearance_tables():
+    mechanism = build_mechanism(settings_of(str(EXAMPLES / "slider_crank_pin_on_rod.toml")))
+    joints = {j.name: j for j in mechanism.clearance_joints}
+    assert sorted(joints) == ["A", "B"]
+    assert float(joints["A"].geometry.clearance) == pytest.approx(2.5e-4)
+    assert float(joints["B"].geometry.clearance) == pytest.approx(1.0e-4)
+    # pin on the rod at B: the rod carries the journal, the slider the bearing, at B's points
+    assert (joints["B"].journal_body, joints["B"].bearing_body) == ("rod", "slider")
+    np.testing.assert_allclose(joints["B"].journal_point, [ROD / 2, 0.0])
+    assert (joints["A"].bearing_body, joints["A"].journal_body) == ("crank", "rod")
+    assert isinstance(joints["A"].contact_law, Hybrid) and isinstance(joints["B"].friction_law, LuGre)
+
+
+def test_flag_overrides_clearance_list_and_per_joint_tables():
+    settings = settings_of(str(EXAMPLES / "slider_crank_pin_on_rod.toml"), "--clearance-joints", "B", "--clearance", "3e-4")
+    (joint,) = build_mechanism(settings).clearance_joints
+    assert joint.name == "B" and joint.journal_body == "rod"
+    assert float(joint.geometry.clearance) == pytest.approx(1.0e-4)  # the per-joint table beats the shared flag
+
+
+def test_four_bar_by_name():
+    mechanism = build_mechanism(settings_of(str(EXAMPLES / "four_bar_two_clearances.toml")))
+    assert mechanism.body_names == ("crank", "coupler", "rocker")
+    joints = {j.name: j for j in mechanism.clearance_joints}
+    assert sorted(joints) == ["B", "O4"]
+    assert float(joints["O4"].geometry.clearance) == pytest.approx(2.5e-4)
+    assert float(joints["B"].geometry.clearance) == pytest.approx(5.0e-4)
+    assert [j.name for j in mechanism.joints] == ["O2", "A"]
+
+
+def test_custom_mechanism_description():
+    mechanism = build_mechanism(settings_of(str(EXAMPLES / "custom_mechanism.toml")))
+    assert mechanism.body_names == ("crank", "block", "lever")
+    assert [type(j).__name__ for j in mechanism.joints] == ["RevoluteJoint", "TranslationalJoint"]
+    assert [f.name for f in mechanism.forces] == ["return", "resistance"]
+    joints = {j.name: j for j in mechanism.clearance_joints}
+    assert (joints["A"].journal_body, joints["A"].bearing_body) == ("crank", "block")
+    assert (joints["O4"].bearing_body, joints["O4"].journal_body) == ("ground", "lever")
+    assert mechanism.driver.body == "crank"
+    assert float(mechanism.driver.speed) == pytest.approx(1500 * 2 * math.pi / 60)
+    np.testing.assert_allclose(np.asarray(mechanism.gravity), [0.0, -9.81])
+
+
+PENDULUM = """[mechanism]
+rpm = 600
+gravity = true
+[ground.points]
+O = [0.0, 0.0]
+[bodies.arm]
+mass = 1.0
+inertia = 1e-3
+position = [0.05, 0.0, 0.0]
+[bodies.arm.points]
+O = [-0.05, 0.0]
+tip = [0.05, 0.0]
+[joints.O]
+type = "revolute"
+between = ["ground.O", "arm.O"]
+[driver]
+body = "arm"
+"""
+
+BAD_DESCRIPTIONS = {
+    "unknown body": (('between = ["ground.O", "arm.O"]', 'between = ["ground.O", "amr.O"]'), "[joints.O] between: unknown body 'amr'"),
+    "joint to itself": (('between = ["ground.O", "arm.O"]', 'between = ["arm.tip", "arm.O"]'), "[joints.O] between: connects body 'arm' to itself"),
+    "missing point": (('between = ["ground.O", "arm.O"]', 'between = ["ground.P", "arm.O"]'), "missing point 'P' on 'ground'"),
+    "unknown key": (("mass = 1.0", "mass = 1.0\ncolour = 1"), "[bodies.arm]: unknown key 'colour'"),
+    "missing key": (("inertia = 1e-3\n", ""), "[bodies.arm]: missing key 'inertia'"),
+    "negative mass": (("mass = 1.0", "mass = -1.0"), "[bodies.arm] mass: must be positive"),
+    "pose not three numbers": (("position = [0.05, 0.0, 0.0]", "position = [0.05, 0.0]"), "[bodies.arm] position: must be a list of 3 numbers"),
+    "unknown joint type": (('type = "revolute"', 'type = "hinge"'), "[joints.O] type: must be \"revolute\" or \"translational\""),
+    "no driver": (('[driver]\nbody = "arm"\n', ""), "[driver]: missing"),
+    "driver on unknown body": (('body = "arm"', 'body = "rotor"'), "[driver] body: unknown body 'rotor'"),
+    "clearance on a translational joint": (
+        ('type = "revolute"', 'type = "translational"'),
+        "joint 'O' is a TranslationalJoint; clearance applies to revolute joints only",
+    ),
+    "cannot assemble": (("O = [-0.05, 0.0]", "O = [-0.20, 0.0]\nfar = [0.0, 0.0]"), "the mechanism cannot be assembled"),
+    "spring to an unknown point": (('[driver]', '[springs.k]\nbetween = ["ground.O", "arm.knob"]\nstiffness = 10.0\n[driver]'), "[springs.k] between: missing point 'knob' on 'arm'"),
+    "load of unknown type": (('[driver]', '[loads.F]\ntype = "pressure"\n[driver]'), "[loads.F] type: must be \"force\" or \"torque\""),
+    "name is not custom": (("[mechanism]", '[mechanism]\nname = "four_bar"'), "describe a custom mechanism"),
+    "no rpm": (("rpm = 600", ""), "[mechanism] rpm is required for a custom mechanism"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_DESCRIPTIONS))
+def test_bad_mechanism_description(case, tmp_path, capsys):
+    (old, new), match = BAD_DESCRIPTIONS[case]
+    assert old in PENDULUM, case
+    text = PENDULUM.replace(old, new, 1)
+    if case == "clearance on a translational joint":
+        text += '[clearance]\njoints = "O"\n'
+    if case == "cannot assemble":  # a second joint that cannot close: the arm's far point on ground's O too
+        text += '[joints.P]\ntype = "revolute"\nbetween = ["ground.O", "arm.far"]\n'
+    config = tmp_path / "bad.toml"
+    config.write_text(text)
+    assert_usage_error(capsys, ["run", str(config), *SHORT, "--out", str(tmp_path / "out")], match)
+    assert not (tmp_path / "out").exists()
+
+
+def test_docs_reference_is_current():
+    from jaxclear.cli._reference import fill
+
+    text = (Path(__file__).parents[1] / "docs" / "cli.md").read_text()
+    assert fill(text) == text, "run: python -m jaxclear.cli._reference docs/cli.md"
