@@ -15,7 +15,7 @@ import pytest
 
 import jaxclear
 from jaxclear import ClearanceJoint
-from jaxclear._simulate import _simulate_core, assemble
+from jaxclear._simulate import assemble
 from jaxclear.analysis import drive_work, kinetic_energy
 from jaxclear.contact import ContactGeometry, Hybrid, LankaraniNikravesh, Smoothing
 from jaxclear.dynamics import _clearance as clearance
@@ -146,9 +146,7 @@ def test_gradient_wrt_clearance_matches_finite_difference():
     ts = jnp.linspace(0.0, GRAD_HORIZON, 8)
 
     def final_eccentricity(clearance):
-        traj = _simulate_core(
-            build(clearance, HERTZ_K, 0.9), ts, jnp.asarray(0.0), jnp.asarray(GRAD_HORIZON), None, GRAD_SOLVER, False
-        )
+        traj = jaxclear.simulate(build(clearance, HERTZ_K, 0.9), GRAD_HORIZON, ts=ts, solver=GRAD_SOLVER)
         return traj.clearance["B"]["ecc_x"][-1]
 
     c0 = 5e-4
@@ -172,10 +170,22 @@ def test_batch_equals_loop(limit_runs):
         np.testing.assert_allclose(batch.q[k], limit_runs[k].q, rtol=0, atol=1e-9)
 
 
+BACKEND_COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"  # one event per XLA compilation
+
+
 def test_no_recompile_for_new_clearance(limit_runs):
-    before = _simulate_core._cached._cache_size()
-    run(2e-4, HERTZ_K, 0.5, revolutions=0.1)
-    assert _simulate_core._cached._cache_size() == before
+    compilations = []
+
+    def listener(event, duration, **kwargs):
+        if event == BACKEND_COMPILE_EVENT:
+            compilations.append(duration)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        run(2e-4, HERTZ_K, 0.5, revolutions=0.1)
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert not compilations
 
 
 # --- bad input ----------------------------------------------------------------------------------------
