@@ -8,6 +8,7 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 
+from . import analysis as analysis  # noqa: E402
 from . import mechanisms as mechanisms  # noqa: E402
 from ._errors import AssemblyError as AssemblyError  # noqa: E402
 from ._errors import ModelError as ModelError  # noqa: E402

@@ -9,8 +9,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jax.interpreters import ad
+
 from ._checks import is_concrete
 from ._errors import AssemblyError, ModelError, SimulationError
+from ._extremes import ExtremesTracking, Observation
+from ._smooth import safe_norm
 from ._solver import SolverConfig, solver_config
 from ._trajectory import INPUT_ERRORS, Trajectory
 from .dynamics._assembly import assemble_state, check_assembly
@@ -96,15 +100,73 @@ def _input_error(mechanism, y0, assembled_ok):
     ).astype(jnp.int32)
 
 
+def _observe(t, y, mechanism) -> Observation:
+    """What ``ExtremesTracking`` records at the end of each step (``jaxclear._extremes``)."""
+    out = _outputs(mechanism, t, y)
+    qdd = out["qdd"]
+    return Observation(
+        accelerations=qdd,
+        body_accelerations=safe_norm(jnp.reshape(qdd, (-1, 3))[:, :2], axis=-1),
+        input_torque=out["input_torque"],
+        normal_force={name: c["normal_force"] for name, c in out["clearance"].items()},
+        penetration={name: c["penetration"] for name, c in out["clearance"].items()},
+        constraint_violation=out["constraint_violation"],
+    )
+
+
+_OBSERVE = eqx.filter_jit(_observe)
+
+
+ADJOINTS = ("auto", "reverse", "forward")
+"""Names ``simulate`` accepts for ``adjoint`` (besides a ``diffrax.AbstractAdjoint``)."""
+
+
+def _has_forward_mode_tracer(tree) -> bool:
+    """True if an array leaf is traced by ``jax.jvp``/``jax.jacfwd``, seen through ``vmap``.
+
+    A transformation applied outside a ``jax.jit`` of the caller is invisible here (the leaves
+    are then jit tracers); ``adjoint="forward"`` covers that case.
+    """
+    for leaf in jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array)):
+        x = leaf
+        while isinstance(x, jax.core.Tracer):
+            if isinstance(x, ad.JVPTracer):
+                return True
+            x = getattr(x, "val", None)  # a vmap tracer holds the value it batches
+    return False
+
+
+def make_adjoint(adjoint, traced_tree=None) -> diffrax.AbstractAdjoint:
+    """The diffrax adjoint for ``simulate``'s ``adjoint`` argument.
+
+    ``"reverse"``: ``diffrax.RecursiveCheckpointAdjoint`` (reverse mode: ``jax.grad``, ``jax.vjp``,
+    ``jax.jacrev``; memory grows as the log of the number of steps). ``"forward"``:
+    ``diffrax.ForwardMode`` (``jax.jvp``, ``jax.jacfwd``; cheaper than reverse mode for a few
+    parameters, no reverse mode). ``"auto"``: forward mode if ``traced_tree`` carries
+    ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode otherwise.
+    """
+    if isinstance(adjoint, diffrax.AbstractAdjoint):
+        return adjoint
+    if adjoint == "auto":
+        adjoint = "forward" if _has_forward_mode_tracer(traced_tree) else "reverse"
+    if adjoint == "reverse":
+        return diffrax.RecursiveCheckpointAdjoint()
+    if adjoint == "forward":
+        return diffrax.ForwardMode()
+    raise ValueError(
+        f"adjoint {adjoint!r} is unknown; use one of {', '.join(map(repr, ADJOINTS))} or a diffrax.AbstractAdjoint."
+    )
+
+
 @eqx.filter_jit
-def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bool):
+def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig, adjoint, progress: bool):
     assembled_ok = jnp.asarray(True)
     if y0 is None:
         q0, qd0, pos_res, _ = assemble_state(mechanism, t0)
         assembled_ok = pos_res < ASSEMBLY_TOLERANCE
         y0 = initial_state(mechanism, q0, qd0)
     input_error = _input_error(mechanism, y0, assembled_ok)
-    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)])
+    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=True)
     # IMEX methods run as AffineKenCarp (closed-form stage solves, jaxclear/_imex.py) on the full
     # vector field, with the stiff part passed to the solver.
     terms = diffrax.ODETerm(_FULL)
@@ -113,22 +175,39 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
     offset = config.exponential and bool(np.any(mechanism.memory_rows))
     solve_mechanism = mechanism.with_memory_offset() if offset else mechanism
     y_start = y0 - memory_offset_shift(mechanism, y0) if offset else y0
-    sol = diffrax.diffeqsolve(
-        terms,
-        config.make_solver(
-            num_explicit=2 * mechanism.num_coordinates, decay=_DECAY, memory_rows=mechanism.memory_rows, stiff=_STIFF
-        ),
-        t0,
-        t1,
-        config.dt0,
-        y_start,
-        args=solve_mechanism,
-        saveat=saveat,
-        stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows if offset else None),
-        max_steps=config.max_steps,
-        throw=False,
-        progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),
+    solver = config.make_solver(
+        num_explicit=2 * mechanism.num_coordinates, decay=_DECAY, memory_rows=mechanism.memory_rows, stiff=_STIFF
     )
+    # diffrax sets the Runge–Kutta stage loop to a kind its adjoint can differentiate only for an
+    # unwrapped solver (diffrax/_adjoint.py, "Support forward-mode autodiff"); do it for the
+    # wrapped one the same way.
+    if isinstance(solver, diffrax.AbstractRungeKutta) and solver.scan_kind is None:
+        kind = {diffrax.ForwardMode: "lax", diffrax.RecursiveCheckpointAdjoint: "bounded"}.get(type(adjoint))
+        if kind is not None:
+            solver = eqx.tree_at(lambda s: s.scan_kind, solver, kind, is_leaf=lambda x: x is None)
+    try:
+        sol = diffrax.diffeqsolve(
+            terms,
+            ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float)),
+            t0,
+            t1,
+            config.dt0,
+            y_start,
+            args=solve_mechanism,
+            saveat=saveat,
+            stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows if offset else None),
+            max_steps=config.max_steps,
+            adjoint=adjoint,
+            throw=False,
+            progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),
+        )
+    except TypeError as e:
+        if "custom_vjp" in str(e):
+            raise TypeError(
+                "forward-mode differentiation (jax.jvp, jax.jacfwd) of simulate needs adjoint='forward'; "
+                "it could not be detected here because the transformation is outside a jax.jit."
+            ) from e
+        raise
     ys, y_final = sol.ys[0], sol.ys[1][-1]
     if offset:
         ys = ys + jax.vmap(lambda y: memory_offset_shift(mechanism, y))(ys)
@@ -147,6 +226,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
         constraint_violation=out["constraint_violation"],
         velocity_violation=out["velocity_violation"],
         clearance=out["clearance"],
+        extremes=sol.solver_state[1],
         num_steps=sol.stats["num_steps"],
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],
@@ -158,15 +238,41 @@ def _simulate_core(mechanism, ts, t0, t1, y0, config: SolverConfig, progress: bo
     )
 
 
+def _is_concrete_number(x) -> bool:
+    return not isinstance(x, jax.core.Tracer)
+
+
 def _time_grid(t0, t1, ts, num_points):
+    """Output times: checked NumPy values for concrete t0, t1, ts; a traced grid otherwise."""
     if ts is None:
-        ts = np.linspace(t0, t1, 201 if num_points is None else int(num_points))
+        n = 201 if num_points is None else int(num_points)
+        if n < 1:
+            raise ValueError(f"num_points must be a positive integer, got {num_points}.")
+        if not (_is_concrete_number(t0) and _is_concrete_number(t1)):
+            return jnp.linspace(t0, t1, n)
+        ts = np.linspace(t0, t1, n)
+    if isinstance(ts, jax.core.Tracer):
+        if ts.ndim != 1:
+            raise ValueError(f"ts must be a 1-D array of output times, got shape {ts.shape}.")
+        return ts
     ts = np.asarray(ts, dtype=float)
     if ts.ndim != 1 or ts.size < 1:
         raise ValueError("ts must be a 1-D array of output times.")
-    if np.any(np.diff(ts) < 0) or ts[0] < t0 or ts[-1] > t1 or not np.all(np.isfinite(ts)):
-        raise ValueError(f"ts must be increasing and inside [t0, t1] = [{t0}, {t1}]; got {ts[0]} .. {ts[-1]}.")
+    if _is_concrete_number(t0) and _is_concrete_number(t1):
+        if np.any(np.diff(ts) < 0) or ts[0] < t0 or ts[-1] > t1 or not np.all(np.isfinite(ts)):
+            raise ValueError(f"ts must be increasing and inside [t0, t1] = [{t0}, {t1}]; got {ts[0]} .. {ts[-1]}.")
     return jnp.asarray(ts)
+
+
+def _staging() -> bool:
+    """True while a ``jax.jit`` (or another staging transformation) is being traced: operations
+    on constants then give tracers too, and nothing can be checked or raised on values."""
+    return isinstance(jnp.zeros(()), jax.core.Tracer)
+
+
+def _is_traced(tree) -> bool:
+    leaves = jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
+    return _staging() or any(isinstance(x, jax.core.Tracer) for x in leaves)
 
 
 def simulate(
@@ -178,14 +284,27 @@ def simulate(
     num_points: int | None = None,
     solver: "str | SolverConfig" = "auto",
     y0=None,
+    adjoint: "str | diffrax.AbstractAdjoint" = "auto",
+    statistics_start: float | None = None,
     progress: bool = False,
     throw: bool = True,
 ) -> Trajectory:
-    """Simulate a mechanism from ``t0`` to ``t1``.
+    """Simulate a mechanism from ``t0`` to ``t1``: the front door of jaxclear.
 
-    The initial state is assembled (consistent positions and velocities, journals centred) unless
-    ``y0`` is given. Compiled once per mechanism topology, solver config and number of output
-    points: new parameter values or end times reuse the compiled code.
+    A pure function of the mechanism's array leaves (masses, lengths, clearances, stiffnesses,
+    restitution, friction, crank speed, ...) and of ``y0``: it works unchanged under
+    ``jax.jit``, ``jax.vmap``, ``jax.grad``, ``jax.jvp``/``jax.jacfwd`` and their compositions.
+    Compiled once per mechanism topology, solver config and number of output points: new
+    parameter values or end times reuse the compiled code.
+
+    Called eagerly (no transformation), it checks its inputs on the host (``ModelError``,
+    ``AssemblyError`` naming the offending part) and raises ``SimulationError`` if the solve fails.
+    Under a transformation nothing can be raised on values: failures are data, as in a batch
+    (``Trajectory.succeeded``, ``.result``, ``.input_error``; ``raise_for_failure`` raises them
+    afterwards on concrete results).
+
+    The initial state is assembled (consistent positions and velocities, journals at their
+    ``initial_eccentricity``, centred by default) unless ``y0`` is given.
 
     Args:
         mechanism: a ``Mechanism``.
@@ -197,33 +316,69 @@ def simulate(
             ``recommended_solver``), a preset name (``"robust"``, ``"fast"``, ``"imex"``,
             ``"accurate"``), a method name or a ``SolverConfig``.
         y0: initial state (from ``assemble``) to skip assembly.
+        adjoint: how derivatives go through the solve: ``"reverse"`` (``jax.grad``, ``jax.vjp``,
+            ``jax.jacrev``; recursive checkpointing), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``:
+            cheaper for a few parameters, no reverse mode), ``"auto"`` (default: forward mode when
+            the inputs carry ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode otherwise; a forward
+            transformation applied outside a ``jax.jit`` of your function cannot be seen, pass
+            ``"forward"`` then) or any ``diffrax.AbstractAdjoint``. No effect on the values.
+        statistics_start: start time, s, of the window over which ``Trajectory.extremes`` (peak
+            forces, penetrations and accelerations, torque extremes and RMS) are taken from the
+            solver's steps; default ``t0``. Use it to leave out the start-up revolutions.
         progress: show a progress bar (tqdm) over simulated time.
-        throw: raise ``SimulationError`` if the solve fails (else inspect ``Trajectory.result``).
+        throw: eager calls only: raise ``SimulationError`` if the solve fails (else inspect
+            ``Trajectory.result``).
 
     Returns:
         A ``Trajectory``.
 
     Raises:
-        ModelError: a non-finite or invalid parameter.
-        AssemblyError: the mechanism cannot be assembled.
-        SimulationError: the solver failed (gives the time reached, the state and a fix).
+        ValueError: a bad argument (time grid, adjoint name, shape of ``y0``).
+        ModelError: a non-finite or invalid parameter (eager calls).
+        AssemblyError: the mechanism cannot be assembled (eager calls).
+        SimulationError: the solver failed (eager calls with ``throw``; gives the time reached,
+            the state and a fix).
     """
     config = solver_config(solver, mechanism)
-    t0, t1 = float(t0), float(t1)
-    if not (np.isfinite(t1) and t1 > t0):
-        raise ValueError(f"t1 must be finite and greater than t0={t0}, got {t1}.")
+    traced = _is_traced((mechanism, y0, t0, t1, ts, statistics_start))
+    if _is_concrete_number(t0) and _is_concrete_number(t1):
+        t0, t1 = float(t0), float(t1)
+        if not (np.isfinite(t0) and np.isfinite(t1) and t1 > t0):
+            raise ValueError(f"t0 and t1 must be finite with t1 > t0; got t0={t0}, t1={t1}.")
     grid = _time_grid(t0, t1, ts, num_points)
-    if y0 is None:
-        y0 = assemble(mechanism, t0)
-    else:
+    if y0 is not None:
         y0 = jnp.asarray(y0, dtype=float)
         if y0.shape != (mechanism.state_size,):
             raise ValueError(f"y0 must have shape ({mechanism.state_size},), got {y0.shape}.")
-    traj = _simulate_core(mechanism, grid, jnp.asarray(t0), jnp.asarray(t1), y0, config, progress)
-    raise_input_errors(traj)
-    if throw and not bool(traj.succeeded):
-        raise failure_error(traj, config)
+    elif not traced:
+        y0 = assemble(mechanism, t0)
+    start = t0 if statistics_start is None else statistics_start
+    traj = _simulate_core(
+        mechanism,
+        grid,
+        jnp.asarray(t0, dtype=float),
+        jnp.asarray(t1, dtype=float),
+        y0,
+        jnp.asarray(start, dtype=float),
+        config,
+        make_adjoint(adjoint, (mechanism, y0)),
+        progress,
+    )
+    if not traced:
+        raise_for_failure(traj, config if throw else None)
     return traj
+
+
+def raise_for_failure(traj: Trajectory, config: SolverConfig | None = None) -> None:
+    """Raise the errors of a concrete (not traced) trajectory, single or batched.
+
+    Input checks made inside the compiled solve raise ``ModelError`` (``AssemblyError`` for an
+    assembly failure), naming the failing batch members. With ``config`` given, a failed solve of
+    an unbatched trajectory raises ``SimulationError`` with the time reached, the state and a fix.
+    """
+    raise_input_errors(traj)
+    if config is not None and np.ndim(traj.succeeded) == 0 and not bool(traj.succeeded):
+        raise failure_error(traj, config)
 
 
 def raise_input_errors(traj: Trajectory) -> None:
@@ -280,32 +435,40 @@ def simulate_batch(
     ts=None,
     num_points: int | None = None,
     solver: "str | SolverConfig" = "auto",
+    adjoint: "str | diffrax.AbstractAdjoint" = "auto",
+    statistics_start: float | None = None,
 ) -> Trajectory:
-    """Simulate many variants of a mechanism in one vectorised (``vmap``) solve.
+    """Simulate many variants of a mechanism in one vectorised solve: ``jax.vmap`` of ``simulate``.
+
+    Jittable and differentiable like ``simulate``. Members run in lockstep until the slowest one
+    finishes.
 
     Args:
         build: ``build(p) -> Mechanism`` for one member's parameters ``p`` (a pytree of arrays).
         parameters: pytree whose leaves have a leading batch axis.
-        t1, t0, ts, num_points, solver: as in ``simulate``.
+        t1, t0, ts, num_points, solver, adjoint, statistics_start: as in ``simulate``.
 
     Returns:
         A batched ``Trajectory``. Members whose solve fails do not raise: check ``traj.succeeded``
         and ``traj.t_final`` per member.
 
     Raises:
-        AssemblyError, ModelError: some members cannot be assembled or have invalid values (the
-            message lists them).
+        AssemblyError, ModelError: eager calls only: some members cannot be assembled or have
+            invalid values (the message lists them).
     """
     if solver == "auto":
         # the friction laws (which decide) are static: build one member abstractly to see them
         first = jax.tree_util.tree_map(lambda x: x[0], parameters)
         solver = solver_config("auto", eqx.filter_eval_shape(build, first))
     config = solver_config(solver)
-    grid = _time_grid(float(t0), float(t1), ts, num_points)
 
     def one(p):
-        return _simulate_core(build(p), grid, jnp.asarray(t0, float), jnp.asarray(t1, float), None, config, False)
+        return simulate(
+            build(p), t1, t0=t0, ts=ts, num_points=num_points, solver=config, adjoint=adjoint,
+            statistics_start=statistics_start, throw=False,
+        )
 
     traj = eqx.filter_vmap(one)(parameters)
-    raise_input_errors(traj)
+    if not _is_traced(traj):
+        raise_input_errors(traj)
     return traj

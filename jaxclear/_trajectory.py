@@ -9,6 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ._extremes import Extremes
+
 
 INPUT_ERRORS = {
     1: "mechanism cannot be assembled: run jaxclear.assemble() on it for details",
@@ -40,6 +42,9 @@ class Trajectory(eqx.Module):
         constraint_violation: max |Φ| over constraint rows (N,), m or rad.
         velocity_violation: max |Φ̇| (N,), m/s or rad/s.
         clearance: per clearance joint a dict of outputs (eccentricity, penetration, forces, mode).
+        extremes: peaks, extremes and the input-torque RMS taken from the solver's steps over the
+            statistics window (``Extremes``; independent of the output grid). Named statistics:
+            ``jaxclear.analysis.statistics``.
         num_steps, num_accepted_steps, num_rejected_steps: solver statistics (scalars).
         result: diffrax outcome (``diffrax.RESULTS``); success unless the solve failed.
         input_error: 0, or the code of a check of the inputs made inside the compiled solve
@@ -61,6 +66,7 @@ class Trajectory(eqx.Module):
     constraint_violation: Float[Array, " N"]
     velocity_violation: Float[Array, " N"]
     clearance: dict
+    extremes: Extremes
     num_steps: Int[Array, ""]
     num_accepted_steps: Int[Array, ""]
     num_rejected_steps: Int[Array, ""]

@@ -1,4 +1,4 @@
-"""Post-processing: energy, contact modes."""
+"""Post-processing: energy, contact modes, run statistics."""
 
 from ._energy import drive_power as drive_power
 from ._energy import drive_work as drive_work
@@ -11,3 +11,4 @@ from ._modes import MODE_NAMES as MODE_NAMES
 from ._modes import combination_shares as combination_shares
 from ._modes import contact_modes as contact_modes
 from ._modes import trajectory_modes as trajectory_modes
+from ._statistics import statistics as statistics
