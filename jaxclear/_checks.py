@@ -40,6 +40,13 @@ def check_nonnegative(owner: str, name: str, value, unit: str = "", fix: str = "
         _fail(owner, name, ">= 0", np.asarray(value), unit, fix)
 
 
+def check_open_interval(owner: str, name: str, value, lower: float, upper: float, fix: str) -> None:
+    """Raise ``ModelError`` unless the concrete ``value`` is finite and in (``lower``, ``upper``)."""
+    check_finite(owner, name, value)
+    if is_concrete(value) and not np.all((np.asarray(value) > lower) & (np.asarray(value) < upper)):
+        _fail(owner, name, f"in ({lower:g}, {upper:g})", np.asarray(value), "", fix)
+
+
 def check_restitution(owner: str, value, name: str = "restitution") -> None:
     """Raise ``ModelError`` unless the concrete coefficient of restitution is in (0, 1]."""
     if is_concrete(value):

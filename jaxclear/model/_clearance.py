@@ -14,7 +14,13 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_positive, check_shape, is_concrete
+from .._checks import (
+    check_finite,
+    check_open_interval,
+    check_positive,
+    check_shape,
+    is_concrete,
+)
 from .._errors import ModelError
 from ..contact import Hybrid
 from ..contact._base import AbstractContactLaw, ContactGeometry, Smoothing
@@ -72,10 +78,7 @@ class ClearanceJoint(eqx.Module):
         check_positive(owner, "bearing_young", g.bearing_young, "Pa")
         check_positive(owner, "journal_young", g.journal_young, "Pa")
         for attr in ("bearing_poisson", "journal_poisson"):
-            nu = getattr(g, attr)
-            check_finite(owner, attr, nu)
-            if is_concrete(nu) and not (0.0 < float(nu) < 0.5):
-                raise ModelError(f"{owner}: {attr} must be in (0, 0.5), got {float(nu)}; steel is 0.3.")
+            check_open_interval(owner, attr, getattr(g, attr), 0.0, 0.5, "steel is 0.3")
         if is_concrete(g.bearing_radius) and is_concrete(g.journal_radius):
             if not float(g.journal_radius) < float(g.bearing_radius):
                 raise ModelError(
@@ -124,8 +127,7 @@ class ClearanceJoint(eqx.Module):
             )
         geometry = kwargs.pop("geometry", None) or ContactGeometry(0.01, 0.0095)
         if clearance is not None:
-            if is_concrete(clearance) and not float(clearance) > 0:
-                raise ModelError(f"{owner}: clearance must be > 0 m, got {clearance}.")
+            check_positive(owner, "clearance", clearance, "m")
             geometry = eqx.tree_at(lambda g: g.journal_radius, geometry, geometry.bearing_radius - clearance)
             if is_concrete(geometry.journal_radius) and not float(geometry.journal_radius) > 0:
                 raise ModelError(f"{owner}: clearance {clearance} m is not smaller than the bearing radius.")
