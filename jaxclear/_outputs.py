@@ -273,12 +273,13 @@ def mode_shares(traj, continuous_fraction: float, reference_period: float | None
 
 
 def run_statistics(traj) -> dict[str, float]:
-    """The run's ``statistics`` object for run.json (``jaxclear.analysis.statistics``)."""
-    from . import analysis
+    """The run's ``statistics`` object for run.json: ``jaxclear.analysis.statistics`` as numbers.
 
-    statistics = getattr(analysis, "statistics", None)
-    if statistics is None:
-        return {}
+    The values come from the solver's steps over the window that ``simulate``'s
+    ``statistics_start`` opened (``jaxclear run`` passes the start of the kept revolutions).
+    """
+    from .analysis import statistics
+
     return {name: float(value) for name, value in statistics(traj).items()}
 
 

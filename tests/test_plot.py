@@ -117,3 +117,57 @@ def test_contact_force_plot(clearance_traj):
 def test_unknown_quantity(traj):
     with pytest.raises(ValueError, match="unknown quantity 'slider_jerk'"):
         plot.plot_vs_crank_angle(traj, "slider_jerk")
+
+
+def test_window_keeps_the_later_instants(clearance_traj):
+    from jaxclear._outputs import window
+
+    t = np.asarray(clearance_traj.t)
+    start = t[NUM_POINTS // 2]
+    kept = window(clearance_traj, start)
+    np.testing.assert_array_equal(np.asarray(kept.t), t[NUM_POINTS // 2 :])
+    np.testing.assert_array_equal(np.asarray(kept.q), np.asarray(clearance_traj.q)[NUM_POINTS // 2 :])
+    np.testing.assert_array_equal(
+        np.asarray(kept.clearance["B"]["normal_force"]), np.asarray(clearance_traj.clearance["B"]["normal_force"])[NUM_POINTS // 2 :]
+    )
+    # the plots of the kept window: x from the window's first angle, y-range from the window's values
+    fig = plot.plot_vs_crank_angle(kept, "slider_a")
+    (line,) = fig.axes[0].get_lines()
+    angle = np.degrees(np.asarray(clearance_traj.coordinates("crank"))[:, 2])
+    assert line.get_xdata()[0] == pytest.approx(angle[NUM_POINTS // 2])
+    low, high = fig.axes[0].get_ylim()
+    values = np.asarray(kept.accelerations("slider"))[:, 0]
+    span = values.max() - values.min()
+    assert low >= values.min() - 0.1 * span and high <= values.max() + 0.1 * span  # matplotlib's 5 % margins
+
+
+@pytest.fixture(scope="module")
+def four_bar_traj():
+    mechanism = jaxclear.mechanisms.four_bar()
+    return jaxclear.simulate(mechanism, 0.25 * 60 / 60.0, num_points=NUM_POINTS, solver="fast")
+
+
+def test_standard_plots_follow_the_mechanism(four_bar_traj, tmp_path):
+    paths = plot.save_standard_plots(four_bar_traj, tmp_path)
+    names = sorted(p.name for p in paths)
+    assert names == sorted(
+        [
+            "crank_torque.png",
+            "coupler_angle.png",
+            "coupler_angular_acceleration.png",
+            "rocker_angle.png",
+            "rocker_angular_acceleration.png",
+            "constraint_violation.png",
+            "joint_forces.png",
+        ]
+    )
+    for path in paths:
+        _check_png(path)
+    fig = plot.plot_vs_crank_angle(four_bar_traj, "rocker_alpha")
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "Crank angle (°)"
+    assert ax.get_ylabel() == "Rocker angular acceleration (rad/s²)"
+    fig = plot.plot_joint_forces(four_bar_traj)
+    lines = fig.axes[0].get_lines()
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["joint O2", "joint A", "joint B", "joint O4"]
+    np.testing.assert_allclose(lines[3].get_ydata(), np.linalg.norm(np.asarray(four_bar_traj.joint_force("O4")), axis=1))

@@ -170,10 +170,10 @@ def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool
     options = dict(num_points=num_points, solver=solver, progress=progress, throw=False)
     start = time.perf_counter()
     with contextlib.redirect_stderr(io.StringIO()):  # keep the warm-up's progress bar off the terminal
-        _block(_simulate.simulate(mechanism, t1 * WARMUP_FRACTION, **options))
+        _block(_simulate.simulate(mechanism, t1 * WARMUP_FRACTION, **options, statistics_start=0.0))
     compile_time = time.perf_counter() - start
     start = time.perf_counter()
-    traj = _block(_simulate.simulate(mechanism, t1, **options))
+    traj = _block(_simulate.simulate(mechanism, t1, **options, statistics_start=statistics_start))
     return traj, compile_time, time.perf_counter() - start
 
 
@@ -190,21 +190,20 @@ def _joints_text(settings: Settings, names: list[str]) -> str:
 
 
 def _figures(traj, statistics: dict) -> str:
-    """The run's headline figures over the kept window."""
+    """The run's headline figures over the kept window, from the solver's steps (``statistics``)."""
     parts = []
-    columns = _outputs.column_map(traj)
-    if "slider_a" in columns:
-        acc = columns["slider_a"].values
-        parts.append(f"slider acceleration {acc.min():.6g} .. {acc.max():.6g} m/s^2")
+    if _outputs.is_slider_crank(traj.mechanism):
+        parts.append(f"peak |slider acceleration| {statistics['peak_slider_acceleration']:.6g} m/s^2")
     driver = traj.mechanism.driver
     if driver is not None:
-        torque = np.asarray(traj.input_torque)
-        parts.append(f"{driver.body} torque {torque.min():.6g} .. {torque.max():.6g} N m")
+        low, high, rms = (statistics[f"{driver.body}_torque_{k}"] for k in ("min", "max", "rms"))
+        parts.append(f"{driver.body} torque {low:.6g} .. {high:.6g} N m (rms {rms:.6g})")
     for name in _outputs.clearance_joint_names(traj):
-        key = f"{name}_peak_normal_force"
-        peak = statistics.get(key, float(np.max(np.asarray(traj.clearance[name]["normal_force"]))))
-        parts.append(f"{name} peak normal force {peak:.6g} N")
-    parts.append(f"max constraint violation {float(np.max(traj.constraint_violation)):.3g} m")
+        parts.append(
+            f"{name} peak normal force {statistics[f'{name}_peak_normal_force']:.6g} N, "
+            f"peak penetration {statistics[f'{name}_peak_penetration'] * 1e6:.4g} um"
+        )
+    parts.append(f"max constraint violation {statistics['max_constraint_violation']:.3g} m")
     return "; ".join(parts)
 
 
@@ -224,6 +223,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     t1, num_points = grid(settings)
     try:
         jaxclear.assemble(ideal)  # a mechanism that cannot assemble is bad input: exit 2
+        out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
         if names and start == "wall":
             mechanism = wall_start(mechanism, num_points=num_points)  # shares the reference run's compilation
         jaxclear.assemble(mechanism)
@@ -233,7 +233,6 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"invalid mechanism: {one_line(e)}") from None
     solver = solver_for(settings, mechanism)
     t_keep = kept_start(settings)
-    out_dir = prepare_output(settings)
 
     quiet = args.quiet
     progress = not (quiet or args.no_progress) and sys.stderr.isatty()
