@@ -305,8 +305,9 @@ BAD_CONFIGS = {
     "journal body not of the joint": ('[clearance.B]\njournal_body = "crank"\n', "journal_body='crank' is not a body of joint 'B'"),
     "journal body shared": ('[clearance]\njournal_body = "rod"\n', "belongs in a per-joint table"),
     "clearance on a translational joint": ('[clearance]\njoints = "slider_guide"\n', "'slider_guide' is a TranslationalJoint; clearance applies to revolute joints only"),
-    "key of another mechanism": ('[mechanism]\nname = "four_bar"\nrod_length = 0.2\n', "rod_length applies to slider_crank only"),
+    "key of another mechanism": ('[mechanism]\nname = "four_bar"\nrod_length = 0.2\n', "rod_length in '{path}' applies to slider_crank only"),
     "unknown mechanism": ('[mechanism]\nname = "crank_rocker"\n', "must be one of slider_crank, four_bar, custom"),
+    "four-bar that cannot close": ('[mechanism]\nname = "four_bar"\nground_length = 2.0\n', "the mechanism cannot be assembled"),
     "four-bar joint on the slider-crank": ('[clearance]\njoints = "O4"\n', "among O, A, B"),
 }
 BAD_OPTIONS = {
@@ -363,6 +364,7 @@ def test_bad_config_file(case, tmp_path, capsys):
     config = tmp_path / "bad.toml"
     config.write_text(text)
     # no other options: the file alone decides (these cases fail before any solve)
+    match = match.replace("{path}", str(config))
     assert_usage_error(capsys, ["run", str(config), "--no-progress", "--out", str(tmp_path / "out")], match)
     assert not (tmp_path / "out").exists()
 
@@ -592,7 +594,7 @@ BAD_DESCRIPTIONS = {
         ('type = "revolute"', 'type = "translational"'),
         "joint 'O' is a TranslationalJoint; clearance applies to revolute joints only",
     ),
-    "cannot assemble": (("O = [-0.05, 0.0]", "O = [-0.20, 0.0]\nfar = [0.0, 0.0]"), "the mechanism cannot be assembled"),
+    "over-constrained": (("O = [-0.05, 0.0]", "O = [-0.20, 0.0]\nfar = [0.0, 0.0]"), "the mechanism cannot be assembled"),
     "spring to an unknown point": (('[driver]', '[springs.k]\nbetween = ["ground.O", "arm.knob"]\nstiffness = 10.0\n[driver]'), "[springs.k] between: missing point 'knob' on 'arm'"),
     "load of unknown type": (('[driver]', '[loads.F]\ntype = "pressure"\n[driver]'), "[loads.F] type: must be \"force\" or \"torque\""),
     "name is not custom": (("[mechanism]", '[mechanism]\nname = "four_bar"'), "describe a custom mechanism"),
@@ -607,7 +609,7 @@ def test_bad_mechanism_description(case, tmp_path, capsys):
     text = PENDULUM.replace(old, new, 1)
     if case == "clearance on a translational joint":
         text += '[clearance]\njoints = "O"\n'
-    if case == "cannot assemble":  # a second joint that cannot close: the arm's far point on ground's O too
+    if case == "over-constrained":  # a second joint: the arm's far point on ground's O too
         text += '[joints.P]\ntype = "revolute"\nbetween = ["ground.O", "arm.far"]\n'
     config = tmp_path / "bad.toml"
     config.write_text(text)

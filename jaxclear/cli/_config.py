@@ -186,7 +186,7 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
             value, source = flag, s.flag
         if source != "default" and s.mechanisms is not None and name not in s.mechanisms:
             raise UsageError(
-                f"{source}: {s.label} applies to {' and '.join(s.mechanisms)} only, and this run's mechanism is "
+                f"{source} applies to {' and '.join(s.mechanisms)} only, and this run's mechanism is "
                 f"{name}; remove it or set [mechanism] name"
             )
         if s.mechanisms is not None and name not in s.mechanisms:

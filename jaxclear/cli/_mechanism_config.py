@@ -158,7 +158,7 @@ def clearance_joint_names(settings: Settings, ideal) -> list[str]:
         if joint in other:
             raise UsageError(
                 f"{source}: joint {joint!r} is a {other[joint]}; clearance applies to revolute joints only "
-                f"({', '.join(revolute)})"
+                f"({', '.join(revolute) or 'the mechanism has none'})"
             )
     bad = [n for n in names if n not in revolute]
     if bad or len(set(names)) != len(names) or (not names and text.lower() != "none"):
