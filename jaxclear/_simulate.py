@@ -18,12 +18,15 @@ from ._smooth import safe_norm
 from ._solver import SolverConfig, solver_config
 from ._trajectory import INPUT_ERRORS, Trajectory
 from .dynamics._assembly import assemble_state, check_assembly
+from .dynamics._batched import groups
 from .dynamics._equations import (
     clearance_outputs,
     evaluate,
+    generalized_forces,
     memory_decay_rates,
     memory_offset_shift,
     nonstiff_vector_field,
+    solve_accelerations,
     stiff_vector_field,
     vector_field,
 )
@@ -101,16 +104,34 @@ def _input_error(mechanism, y0, assembled_ok):
 
 
 def _observe(t, y, mechanism) -> Observation:
-    """What ``ExtremesTracking`` records at the end of each step (``jaxclear._extremes``)."""
-    out = _outputs(mechanism, t, y)
-    qdd = out["qdd"]
+    """What ``ExtremesTracking`` records at the end of each step (``jaxclear._extremes``).
+
+    The part of the right-hand side the extremes need, no more: forces (keeping each clearance
+    joint's kinematics and contact forces from the same pass) and accelerations, without the
+    internal-state rates or a second contact evaluation.
+    """
+    q, qd, states = mechanism.split_state(y)
+    caches = {}
+    forces = generalized_forces(mechanism, t, q, qd, states, caches)
+    qdd, lam, phi, _ = solve_accelerations(mechanism, t, q, qd, forces)
+    normal_force, penetration = {}, {}
+    for k, group in enumerate(groups(mechanism)):
+        kinematics, contact = caches[k]  # stacked over the group's joints if it has several
+        for i, joint in enumerate(group):
+            pick = (lambda x, i=i: x[i]) if len(group) > 1 else (lambda x: x)
+            normal_force[joint.name] = pick(contact.normal_force)
+            penetration[joint.name] = pick(kinematics.penetration)
+    if mechanism.driver is not None:
+        torque = -lam[mechanism.constraint_slices[mechanism.driver.name]][0]
+    else:
+        torque = jnp.zeros((), y.dtype)
     return Observation(
         accelerations=qdd,
         body_accelerations=safe_norm(jnp.reshape(qdd, (-1, 3))[:, :2], axis=-1),
-        input_torque=out["input_torque"],
-        normal_force={name: c["normal_force"] for name, c in out["clearance"].items()},
-        penetration={name: c["penetration"] for name, c in out["clearance"].items()},
-        constraint_violation=out["constraint_violation"],
+        input_torque=torque,
+        normal_force=normal_force,
+        penetration=penetration,
+        constraint_violation=jnp.max(jnp.abs(phi), initial=0.0),
     )
 
 
@@ -178,13 +199,12 @@ def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig,
     solver = config.make_solver(
         num_explicit=2 * mechanism.num_coordinates, decay=_DECAY, memory_rows=mechanism.memory_rows, stiff=_STIFF
     )
-    # diffrax sets the Runge–Kutta stage loop to a kind its adjoint can differentiate only for an
-    # unwrapped solver (diffrax/_adjoint.py, "Support forward-mode autodiff"); do it for the
-    # wrapped one the same way.
-    if isinstance(solver, diffrax.AbstractRungeKutta) and solver.scan_kind is None:
-        kind = {diffrax.ForwardMode: "lax", diffrax.RecursiveCheckpointAdjoint: "bounded"}.get(type(adjoint))
-        if kind is not None:
-            solver = eqx.tree_at(lambda s: s.scan_kind, solver, kind, is_leaf=lambda x: x is None)
+    # ForwardMode sets the Runge–Kutta stage loop to a kind that jvp can go through only for an
+    # unwrapped solver (diffrax/_adjoint.py, ForwardMode, "Support forward-mode autodiff"); do it
+    # for the wrapped one the same way.
+    if isinstance(adjoint, diffrax.ForwardMode) and isinstance(solver, diffrax.AbstractRungeKutta):
+        if solver.scan_kind is None:
+            solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
     try:
         sol = diffrax.diffeqsolve(
             terms,
@@ -343,8 +363,10 @@ def simulate(
     traced = _is_traced((mechanism, y0, t0, t1, ts, statistics_start))
     if _is_concrete_number(t0) and _is_concrete_number(t1):
         t0, t1 = float(t0), float(t1)
-        if not (np.isfinite(t0) and np.isfinite(t1) and t1 > t0):
-            raise ValueError(f"t0 and t1 must be finite with t1 > t0; got t0={t0}, t1={t1}.")
+        if not np.isfinite(t0):
+            raise ValueError(f"t0 must be finite, got {t0}.")
+        if not (np.isfinite(t1) and t1 > t0):
+            raise ValueError(f"t1 must be finite and greater than t0={t0}, got {t1}.")
     grid = _time_grid(t0, t1, ts, num_points)
     if y0 is not None:
         y0 = jnp.asarray(y0, dtype=float)
