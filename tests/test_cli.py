@@ -19,7 +19,6 @@ import numpy as np
 import pytest
 
 import jaxclear
-import jaxclear._simulate
 import jaxclear.cli._run
 from jaxclear import cli
 from jaxclear.cli._config import resolve_settings
@@ -391,7 +390,7 @@ def test_simulation_failure_exits_1(tmp_path, capsys, monkeypatch):
     def failing(*args, **kwargs):
         raise jaxclear.SimulationError("simulation failed at t = 0.001 s after 3 steps.\nSuggested fix: raise max_steps.")
 
-    monkeypatch.setattr(jaxclear._simulate, "simulate", failing)
+    monkeypatch.setattr(jaxclear, "simulate", failing)
     with pytest.raises(SystemExit) as exc:
         cli.main(["run", *SHORT, "--start", "centred", "--out", str(tmp_path / "out")])
     assert exc.value.code == 1
@@ -421,7 +420,7 @@ def test_unexpected_error_is_one_line(tmp_path, capsys, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("something\nunexpected")
 
-    monkeypatch.setattr(jaxclear._simulate, "simulate", broken)
+    monkeypatch.setattr(jaxclear, "simulate", broken)
     with pytest.raises(SystemExit) as exc:
         cli.main(["run", *SHORT, "--start", "centred", "--out", str(tmp_path / "out")])
     assert exc.value.code == 1
@@ -460,7 +459,7 @@ def test_read_only_output_folder(tmp_path, capsys, monkeypatch):
         raise AssertionError("simulate was called before the output folder was checked")
 
     monkeypatch.setattr(jaxclear.cli._run.tempfile, "mkstemp", refuse)
-    monkeypatch.setattr(jaxclear._simulate, "simulate", no_solve)
+    monkeypatch.setattr(jaxclear, "simulate", no_solve)
     out = tmp_path / "out"
     assert_usage_error(capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], f"--out {str(out)!r} is not writable (Permission denied)")
 

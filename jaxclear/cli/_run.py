@@ -11,6 +11,7 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+import jax
 import numpy as np
 
 import jaxclear
@@ -150,8 +151,6 @@ def prepare_output(settings: Settings) -> Path:
 
 
 def _block(traj):
-    import jax
-
     jax.block_until_ready(traj.t)
     return traj
 
@@ -165,15 +164,13 @@ def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool
     XLA compilation, assembly and a negligible solve). The full call is then timed alone as
     ``run_time_s``. Statistics are accumulated over the solver's steps from ``statistics_start``.
     """
-    from .. import _simulate
-
     options = dict(num_points=num_points, solver=solver, progress=progress, throw=False)
     start = time.perf_counter()
     with contextlib.redirect_stderr(io.StringIO()):  # keep the warm-up's progress bar off the terminal
-        _block(_simulate.simulate(mechanism, t1 * WARMUP_FRACTION, **options, statistics_start=0.0))
+        _block(jaxclear.simulate(mechanism, t1 * WARMUP_FRACTION, **options, statistics_start=0.0))
     compile_time = time.perf_counter() - start
     start = time.perf_counter()
-    traj = _block(_simulate.simulate(mechanism, t1, **options, statistics_start=statistics_start))
+    traj = _block(jaxclear.simulate(mechanism, t1, **options, statistics_start=statistics_start))
     return traj, compile_time, time.perf_counter() - start
 
 
@@ -231,6 +228,8 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
     except jaxclear.ModelError as e:
         raise UsageError(f"invalid mechanism: {one_line(e)}") from None
+    except jaxclear.SimulationError as e:  # the short ideal solve of the wall start
+        raise RunError(f"wall start: {one_line(e)} Or start centred (--start centred).") from None
     solver = solver_for(settings, mechanism)
     t_keep = kept_start(settings)
 
@@ -285,7 +284,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             "simulate call afterwards, which reuses the compiled code."
         ),
         versions=_outputs.package_versions(),
-        jax_backend=__import__("jax").default_backend(),
+        jax_backend=jax.default_backend(),
     )
     fraction = config["clearance"]["continuous_fraction"]
     if not bool(traj.succeeded):
@@ -322,6 +321,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
 
 def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> int:
     """A failed solve: the finite instants reached are written, no plots, run.json says why; exit 1."""
+    # the message simulate(throw=True) would raise, for a trajectory that is kept
     from .._simulate import failure_error
 
     failure = failure_error(traj, solver)
