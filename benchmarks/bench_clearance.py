@@ -20,9 +20,10 @@ Reference figures from the issue (a 2-core machine, 2 revolutions):
 
 What is measured, per case and jaxclear solver, each in its own subprocess (so a hung or very slow
 solve is killed after ``--max-wall`` seconds and reported as skipped, and no compiled code is shared):
-    compile  ``--compile-method aot`` (default): ahead-of-time ``_simulate_core.lower(...)`` (tracing and
-             lowering to StableHLO) and ``.compile()`` (XLA), timed separately; the run times are then
-             calls of that compiled executable. ``first-call``: first ``jaxclear.simulate`` call minus
+    compile  ``--compile-method aot`` (default): ahead-of-time ``jax.jit(solve).lower(...)`` of a function
+             calling the public ``jaxclear.simulate`` (tracing and lowering to StableHLO) and
+             ``.compile()`` (XLA), timed separately; the run times are then calls of that compiled
+             executable. ``first-call``: first ``jaxclear.simulate`` call minus
              the median of the steady-state calls (includes Python dispatch, assembly).
     run      median (and min) wall time of ``--repeats`` calls after compilation, including the output
              post-processing on the 721-point grid; ``us/step`` = run / steps.
@@ -111,7 +112,6 @@ def jax_worker(case, solver, revolutions, repeats, compile_method, max_steps, rh
     import jax.numpy as jnp
 
     import jaxclear
-    from jaxclear._simulate import _simulate_core
     from jaxclear.contact import LankaraniNikravesh
     from jaxclear.friction import LuGre, ModifiedCoulomb
     from jaxclear.mechanisms import slider_crank
@@ -132,9 +132,13 @@ def jax_worker(case, solver, revolutions, repeats, compile_method, max_steps, rh
 
     if compile_method == "aot":
         y0 = jaxclear.assemble(mech, 0.0)
-        args = (mech, jnp.asarray(ts), jnp.asarray(0.0), jnp.asarray(t1), y0, config, False)
+
+        def solve(mech, ts, t1, y0):
+            return jaxclear.simulate(mech, t1, ts=ts, y0=y0, solver=config, throw=False)
+
+        args = (mech, jnp.asarray(ts), jnp.asarray(t1), y0)
         t0 = time.perf_counter()
-        lowered = _simulate_core.lower(*args)
+        lowered = jax.jit(solve).lower(*args)
         out["trace_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         compiled = lowered.compile()
@@ -180,7 +184,7 @@ def jax_worker(case, solver, revolutions, repeats, compile_method, max_steps, rh
         ref = np.load(first_contact)
         ts_fc = jnp.asarray(ref["t"])
         if compile_method == "aot":
-            fc = compiled(mech, ts_fc, jnp.asarray(0.0), jnp.asarray(float(ref["t"][-1])), y0, config, False)
+            fc = compiled(mech, ts_fc, jnp.asarray(float(ref["t"][-1])), y0)
         else:
             fc = jaxclear.simulate(mech, float(ref["t"][-1]), ts=np.asarray(ref["t"]), solver=config, throw=False)
         out["first_contact_um"] = {
@@ -225,7 +229,7 @@ def rhs_cost_us(mech, y, t):
     import jax
     import jax.numpy as jnp
 
-    from jaxclear.dynamics._equations import vector_field
+    from jaxclear.dynamics import vector_field
 
     n = 2000
     y = jnp.asarray(y)
@@ -421,7 +425,7 @@ def main():
           f"{os.cpu_count()} CPUs, load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(f"{revolutions:g} revolutions at {RPM:g} rpm, c = {CLEARANCE * 1e3:g} mm, no gravity, "
           f"{POINTS_PER_REVOLUTION} points/rev, rtol {RTOL:g}, atol {ATOL:g}; compile time: "
-          + ("AOT lower (trace) + XLA compile of _simulate_core" if a.compile_method == "aot"
+          + ("AOT lower (trace) + XLA compile of jax.jit(jaxclear.simulate)" if a.compile_method == "aot"
              else "first simulate() call minus median steady-state call")
           + f"; run: median of up to {a.repeats} calls; max {max_wall:.0f} s per solver"
           + (f"; workers pinned to CPU {a.pin_cpu}" if a.pin_cpu is not None else "; workers not pinned")
