@@ -14,6 +14,7 @@ import tempfile
 from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -336,7 +337,8 @@ def write_npz(path: Path, columns: list[Column]) -> Path:
 
     def write(tmp):
         with open(tmp, "wb") as f:
-            np.savez(f, **{c.name: c.values for c in columns})
+            arrays: dict[str, Any] = {c.name: c.values for c in columns}
+            np.savez(f, **arrays)
 
     return atomic_write(path, write)
 

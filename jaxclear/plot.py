@@ -15,6 +15,7 @@ drawn first, thin and grey, behind the main curve::
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -60,8 +61,8 @@ STANDARD_PLOTS = (
 
 FIGSIZE = (7.0, 4.0)  # inches
 DPI = 110  # ~770 x 440 px, a few tens of kB per PNG
-MAIN_STYLE = dict(color="C0", linewidth=1.4, zorder=3)
-REFERENCE_STYLE = dict(color="0.55", linewidth=1.0, linestyle="--", zorder=2)
+MAIN_STYLE: dict[str, Any] = dict(color="C0", linewidth=1.4, zorder=3)
+REFERENCE_STYLE: dict[str, Any] = dict(color="0.55", linewidth=1.0, linestyle="--", zorder=2)
 
 
 def _get(columns: dict[str, Column], quantity: str) -> Column:

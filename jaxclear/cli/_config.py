@@ -192,14 +192,14 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
         if s.mechanisms is not None and name not in s.mechanisms:
             continue  # not a setting of this mechanism: left out of run.json
         config[s.section][s.key] = value
-        sources[(s.section, s.key)] = source
+        sources[(s.section, s.key)] = str(source)
     for s in SETTINGS:
         if (s.section, s.key) in sources:
             check_value(s, config[s.section][s.key], sources[(s.section, s.key)])
     if name == "custom" and config["mechanism"]["rpm"] is None:
         raise UsageError("[mechanism] rpm is required for a custom mechanism (speed of the [driver] body, rev/min)")
     description = file.description if file is not None else {}
-    if description and name != "custom":
+    if file is not None and description and name != "custom":
         tables = ", ".join(f"[{t}]" for t in description)
         raise UsageError(
             f"{tables} in {file.path!r} describe a custom mechanism, but {sources[('mechanism', 'name')]} "

@@ -180,7 +180,7 @@ def clearance_joint_names(settings: Settings, ideal) -> list[str]:
 def joint_options(settings: Settings, joint: str) -> dict:
     """``ClearanceJoint.replacing`` options of one joint: shared [clearance] values overridden by
     ``[clearance.<joint>]``."""
-    c = {s.key: settings.config["clearance"].get(s.key) for s in PER_JOINT}
+    c: dict[str, Any] = {s.key: settings.config["clearance"].get(s.key) for s in PER_JOINT}
     override = settings.joint_tables.get(joint, {})
     c.update(override)
 
@@ -383,7 +383,7 @@ def _custom(settings: Settings, spec: dict | None = None):
     initial = float(poses[body][2]) - (float(poses[relative_to][2]) if relative_to != "ground" else 0.0)
     rpm = settings.config["mechanism"]["rpm"]
     driver = jaxclear.ConstantSpeedDriver(
-        body, speed=rpm * 2.0 * math.pi / 60.0, initial_angle=initial, relative_to=relative_to
+        body=body, speed=rpm * 2.0 * math.pi / 60.0, initial_angle=initial, relative_to=relative_to
     )
 
     forces = []
@@ -412,7 +412,7 @@ def _custom(settings: Settings, spec: dict | None = None):
             target = table["body"]
             if target not in poses:
                 _fail(f"{where} body", f"unknown body {target!r}; bodies: {', '.join(poses)}")
-            forces.append(jaxclear.AppliedTorque(name, target, _number(f"{where} torque", table["torque"])))
+            forces.append(jaxclear.AppliedTorque(name=name, body=target, torque=_number(f"{where} torque", table["torque"])))
 
     gravity = settings.config["mechanism"]["gravity"]
     g = 9.81 if gravity is True else (0.0 if gravity is False else float(gravity))

@@ -10,6 +10,7 @@ import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import jax
 import numpy as np
@@ -164,13 +165,22 @@ def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool
     XLA compilation, assembly and a negligible solve). The full call is then timed alone as
     ``run_time_s``. Statistics are accumulated over the solver's steps from ``statistics_start``.
     """
-    options = dict(num_points=num_points, solver=solver, progress=progress, throw=False)
     start = time.perf_counter()
     with contextlib.redirect_stderr(io.StringIO()):  # keep the warm-up's progress bar off the terminal
-        _block(jaxclear.simulate(mechanism, t1 * WARMUP_FRACTION, **options, statistics_start=0.0))
+        _block(
+            jaxclear.simulate(
+                mechanism, t1 * WARMUP_FRACTION, num_points=num_points, solver=solver, progress=progress, throw=False,
+                statistics_start=0.0,
+            )
+        )
     compile_time = time.perf_counter() - start
     start = time.perf_counter()
-    traj = _block(jaxclear.simulate(mechanism, t1, **options, statistics_start=statistics_start))
+    traj = _block(
+        jaxclear.simulate(
+            mechanism, t1, num_points=num_points, solver=solver, progress=progress, throw=False,
+            statistics_start=statistics_start,
+        )
+    )
     return traj, compile_time, time.perf_counter() - start
 
 
@@ -253,7 +263,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     except jaxclear.SimulationError as e:
         raise RunError(one_line(e)) from None
 
-    info = dict(
+    info: dict[str, Any] = dict(
         format=_outputs.RUN_FORMAT,
         status="complete",
         error=None,
