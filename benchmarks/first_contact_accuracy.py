@@ -11,7 +11,7 @@ friction, the first stick phase. Each run is compared with Dopri8 at rtol 1e-12 
 points: max distance of the journal-centre orbits (µm), and the first saved time at which it
 exceeds 1 µm. Prints figures only.
 
-What it showed (see README, "Accuracy of trajectories with contact"): with Coulomb-type friction
+What it showed (docs/solvers.md, "Accuracy"): with Coulomb-type friction
 every solver at rtol 1e-6 stays within ~0.1 µm; with LuGre the first stick phase is a fork — a tiny
 difference decides whether the journal sticks or slips through — and only some runs at rtol 1e-6
 take the converged branch, while explicit solvers need rtol ~1e-10.

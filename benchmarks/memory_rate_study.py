@@ -4,9 +4,9 @@ Usage:
     python benchmarks/memory_rate_study.py [--joints B] [--rates 1e5,1e6,1e7]
 
 The benchmark slider–crank (5000 rpm, c = 0.5 mm, Lankarani–Nikravesh c_e = 0.9, modified Coulomb
-μ = 0.01, gravity on as in ``slider_crank``'s default) with ``Smoothing(memory_rate=k_m)``:
+μ = 0.01, no gravity: ``slider_crank``'s default) with ``Smoothing(memory_rate=k_m)``:
     model    journal-centre orbits over the first 1.5 ms at each k_m (Dopri8, rtol 1e-11), max
-             distance from the run with k_m = 1e6 (the default, MODEL.md §5) in µm;
+             distance from the run with k_m = 1e6 (the default, docs/model.md §5) in µm;
     cost     Tsit5 (``fast``) over 2 revolutions at rtol 1e-6: steps, rejected steps, wall time of
              the second call (the first compiles).
 The memory's relaxation −k_m (m − δ̇) in free flight is a stiff linear term: an explicit method is
