@@ -1,4 +1,4 @@
-"""Slider–crank with clearance joints (MODEL.md §6): jaxclear solvers against the SciPy reference.
+"""Slider–crank with clearance joints (docs/model.md §6): jaxclear solvers against the SciPy reference.
 
 Usage:
     python benchmarks/bench_clearance.py [--quick] [--cases a,b,c] [--solvers lawson-tsit5,tsit5,kencarp5,kvaerno5]
@@ -40,7 +40,7 @@ tolerances, without its contact-onset events; wall time of the integration only,
 right-hand-side calls including finite-difference Jacobian columns.
 
 Cycle statistics (to show the compared runs are the same model; they do not agree pointwise over two
-revolutions, MODEL.md §5b): RMS slider acceleration and RMS crank torque over the last revolution
+revolutions, docs/model.md §5b): RMS slider acceleration and RMS crank torque over the last revolution
 (over the whole window with --quick), peak normal force per clearance joint over the whole run. The
 RMS values are sampled at 360 points/rev (33 µs) through impact spikes of 10–50 µs, so they scatter
 by ±20 % between correct solvers; the peak forces agree to 0.1 %. ``--agreement`` adds the pointwise
@@ -281,7 +281,7 @@ def scipy_worker(case, revolutions, method):
 
 
 def agreement_worker(case, rtol=1e-10, revolutions=1.0 / 12.0):
-    """Pointwise agreement over the first contacts at tight tolerances (same model, MODEL.md §5b)."""
+    """Pointwise agreement over the first contacts at tight tolerances (same model, docs/model.md §5b)."""
     import jax
 
     import jaxclear
