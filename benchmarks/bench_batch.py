@@ -30,13 +30,19 @@ def main():
     p.add_argument("--sizes", default="1,4,16,64")
     p.add_argument("--revolutions", type=float, default=2.0)
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--pin-cpu", type=int, default=None, help="pin the process to this CPU (before JAX starts)")
-    p.add_argument("--fast-compile", action="store_true", help="XLA_FLAGS=--xla_cpu_use_fusion_emitters=false")
+    p.add_argument(
+        "--pin-cpu", type=int, default=None, help="pin the process to this CPU (before JAX starts)"
+    )
+    p.add_argument(
+        "--fast-compile", action="store_true", help="XLA_FLAGS=--xla_cpu_use_fusion_emitters=false"
+    )
     a = p.parse_args()
     if a.pin_cpu is not None:
         os.sched_setaffinity(0, {a.pin_cpu})
     if a.fast_compile:
-        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_cpu_use_fusion_emitters=false").strip()
+        os.environ["XLA_FLAGS"] = (
+            os.environ.get("XLA_FLAGS", "") + " --xla_cpu_use_fusion_emitters=false"
+        ).strip()
 
     import jax
     import jax.numpy as jnp
@@ -50,17 +56,27 @@ def main():
     friction = LuGre() if a.case == "c" else ModifiedCoulomb(0.01)
 
     def build(c):
-        return slider_crank(rpm=5000.0, clearance_joints=joints, clearance=c,
-                            contact_law=LankaraniNikravesh(restitution=0.9), friction_law=friction, gravity=False)
+        return slider_crank(
+            rpm=5000.0,
+            clearance_joints=joints,
+            clearance=c,
+            contact_law=LankaraniNikravesh(restitution=0.9),
+            friction_law=friction,
+            gravity=False,
+        )
 
     t1 = a.revolutions * 60.0 / 5000.0
     n = int(round(a.revolutions * 360)) + 1
     sizes = [int(s) for s in a.sizes.split(",")]
     rng = np.random.default_rng(0)
-    print(f"case {a.case} (joints {joints}, {type(friction).__name__}), {a.revolutions:g} revolutions, clearance "
-          f"0.5 mm +- 10 %, rtol 1e-6, pinned CPU {a.pin_cpu}, fast compile {a.fast_compile}, jax {jax.__version__}")
-    print(f"{'solver':<13} {'batch':>5} {'compile s':>9} {'run s':>8} {'s/member':>9} {'speed-up':>8}  member steps "
-          "(min / median / max)")
+    print(
+        f"case {a.case} (joints {joints}, {type(friction).__name__}), {a.revolutions:g} revolutions, clearance "
+        f"0.5 mm +- 10 %, rtol 1e-6, pinned CPU {a.pin_cpu}, fast compile {a.fast_compile}, jax {jax.__version__}"
+    )
+    print(
+        f"{'solver':<13} {'batch':>5} {'compile s':>9} {'run s':>8} {'s/member':>9} {'speed-up':>8}  member steps "
+        "(min / median / max)"
+    )
     for solver in a.solvers.split(","):
         config = jaxclear.SolverConfig(method=solver, max_steps=1_000_000)
         per_member_1 = None
@@ -86,9 +102,12 @@ def main():
             per_member = run / size
             if per_member_1 is None:
                 per_member_1 = per_member
-            print(f"{solver:<13} {size:5d} {first - run:9.1f} {run:8.3f} {per_member:9.4f} "
-                  f"{per_member_1 / per_member:7.1f}x  {steps.min()} / {int(np.median(steps))} / {steps.max()}"
-                  + ("" if ok.all() else f"  ({(~ok).sum()} failed)"), flush=True)
+            print(
+                f"{solver:<13} {size:5d} {first - run:9.1f} {run:8.3f} {per_member:9.4f} "
+                f"{per_member_1 / per_member:7.1f}x  {steps.min()} / {int(np.median(steps))} / {steps.max()}"
+                + ("" if ok.all() else f"  ({(~ok).sum()} failed)"),
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

@@ -65,10 +65,16 @@ def bench(solver: str, repeats: int) -> dict:
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=7, help="repeat calls timed after the first (default 7)")
+    parser.add_argument(
+        "--repeats", type=int, default=7, help="repeat calls timed after the first (default 7)"
+    )
     args = parser.parse_args()
-    print(f"jaxclear {jaxclear.__version__}, jax {jax.__version__}, backend {jax.default_backend()}, {platform.processor() or platform.machine()}")
-    print(f"ideal slider-crank, {REVOLUTIONS:g} revolutions at {RPM:g} rpm, {POINTS_PER_REVOLUTION} points/rev, {args.repeats} repeats")
+    print(
+        f"jaxclear {jaxclear.__version__}, jax {jax.__version__}, backend {jax.default_backend()}, {platform.processor() or platform.machine()}"
+    )
+    print(
+        f"ideal slider-crank, {REVOLUTIONS:g} revolutions at {RPM:g} rpm, {POINTS_PER_REVOLUTION} points/rev, {args.repeats} repeats"
+    )
     rows = [bench(s, args.repeats) for s in SOLVERS]
     base = next(r for r in rows if r["solver"] == BASELINE)
     head = (

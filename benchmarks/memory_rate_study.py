@@ -22,7 +22,9 @@ import numpy as np
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--joints", default="B")
-    p.add_argument("--rates", default="1e5,1e6,1e7", help="comma list of k_m, 1/s (1e6 is the reference)")
+    p.add_argument(
+        "--rates", default="1e5,1e6,1e7", help="comma list of k_m, 1/s (1e6 is the reference)"
+    )
     a = p.parse_args()
 
     import jax
@@ -36,17 +38,31 @@ def main():
     rates = [float(r) for r in a.rates.split(",")]
 
     def mechanism(rate):
-        return slider_crank(clearance_joints=a.joints, clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
-                            friction_law=ModifiedCoulomb(0.01), smoothing=Smoothing(memory_rate=rate))
+        return slider_crank(
+            clearance_joints=a.joints,
+            clearance=5e-4,
+            contact_law=LankaraniNikravesh(restitution=0.9),
+            friction_law=ModifiedCoulomb(0.01),
+            smoothing=Smoothing(memory_rate=rate),
+        )
 
     ts = np.linspace(0.0, 1.5e-3, 61)
     tight = jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14, max_steps=5_000_000)
     orbits = {}
     for rate in sorted(set(rates) | {1e6}):
         tr = jaxclear.simulate(mechanism(rate), ts[-1], ts=ts, solver=tight)
-        orbits[rate] = np.stack([np.stack([np.asarray(tr.clearance[j]["ecc_x"]), np.asarray(tr.clearance[j]["ecc_y"])], -1)
-                                 for j in names], 1)
-    print(f"joints {a.joints}; model: first 1.5 ms, Dopri8 rtol 1e-11; cost: Tsit5 rtol 1e-6, 2 revolutions")
+        orbits[rate] = np.stack(
+            [
+                np.stack(
+                    [np.asarray(tr.clearance[j]["ecc_x"]), np.asarray(tr.clearance[j]["ecc_y"])], -1
+                )
+                for j in names
+            ],
+            1,
+        )
+    print(
+        f"joints {a.joints}; model: first 1.5 ms, Dopri8 rtol 1e-11; cost: Tsit5 rtol 1e-6, 2 revolutions"
+    )
     print(f"{'k_m 1/s':>9} {'orbit diff vs 1e6 um':>21} {'steps':>7} {'rej':>6} {'run s':>7}")
     for rate in rates:
         diff = 1e6 * float(np.max(np.linalg.norm(orbits[rate] - orbits[1e6], axis=-1)))
@@ -57,7 +73,9 @@ def main():
         jax.block_until_ready(tr.q)
         wall = time.perf_counter() - t0
         st = tr.stats()
-        print(f"{rate:9.0e} {diff:21.4g} {st['num_steps']:7d} {st['num_rejected_steps']:6d} {wall:7.3f}")
+        print(
+            f"{rate:9.0e} {diff:21.4g} {st['num_steps']:7d} {st['num_rejected_steps']:6d} {wall:7.3f}"
+        )
 
 
 if __name__ == "__main__":
