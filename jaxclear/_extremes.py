@@ -6,9 +6,16 @@ peak normal force of joint A of the default run read 38.7 kN with 721 points and
 with 1441–5001 points, same solver steps). ``ExtremesTracking`` wraps a diffrax solver and
 updates running extremes at the end of every accepted step, where the solver has resolved the
 solution to its tolerance (diffrax keeps the solver state of accepted steps only,
-diffrax/_integrate.py ``keep``). Step ends are what the error control sees: an impact is resolved
-by many steps (contact durations of tens of µs against steps of ~1 µs in contact), so the peak
-between two step ends differs from the larger of the two by a small fraction of the peak.
+diffrax/_integrate.py ``keep``). An impact is resolved by many steps (contact durations of tens
+of µs against steps of ~1 µs in contact).
+
+Each step is sampled at its midpoint (from the step's dense output) and its end, and between
+samples the extremum of a smooth signal is estimated by the vertex of the parabola through three
+consecutive samples when the middle one is a local extremum (peak interpolation). Without these
+the step ends of a smooth run miss peaks by a lot: on the ideal slider–crank at 5000 rpm Tsit5
+takes 29 steps per revolution (12° of crank angle), and the input-torque minimum read
+−130.6 N m from the step ends, −137.1 N m with the parabola, against −138.52 N m
+(tests/test_statistics.py).
 
 The input-torque mean square is integrated by the trapezoidal rule over the same steps.
 """
@@ -17,6 +24,7 @@ from collections.abc import Callable
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -57,8 +65,8 @@ class Extremes(eqx.Module):
         normal_force_max: {clearance joint: peak F_N, N}.
         penetration_max: {clearance joint: peak δ, m}.
         constraint_violation_max: peak max |Φ|, m or rad.
-        previous_time, previous_torque: end of the last accepted step and τ there (for the
-            trapezoidal rule).
+        times, recent: the last two accepted step ends and the observations there (for the
+            trapezoidal rule and the peak interpolation).
     """
 
     start: Float[Array, ""]
@@ -72,8 +80,8 @@ class Extremes(eqx.Module):
     normal_force_max: dict[str, Float[Array, ""]]
     penetration_max: dict[str, Float[Array, ""]]
     constraint_violation_max: Float[Array, ""]
-    previous_time: Float[Array, ""]
-    previous_torque: Float[Array, ""]
+    times: Float[Array, " 2"]
+    recent: tuple[Observation, Observation]
 
     @property
     def input_torque_rms(self) -> Float[Array, ""]:
@@ -86,6 +94,7 @@ class Extremes(eqx.Module):
         inside = t >= start
         neg = lambda x: jnp.where(inside, x, -jnp.inf)  # noqa: E731
         pos = lambda x: jnp.where(inside, x, jnp.inf)  # noqa: E731
+        t = jnp.asarray(t, dtype=float)
         return cls(
             start=jnp.asarray(start, dtype=float),
             duration=jnp.zeros((), dtype=float),
@@ -98,39 +107,69 @@ class Extremes(eqx.Module):
             normal_force_max={k: neg(v) for k, v in obs.normal_force.items()},
             penetration_max={k: neg(v) for k, v in obs.penetration.items()},
             constraint_violation_max=neg(obs.constraint_violation),
-            previous_time=jnp.asarray(t, dtype=float),
-            previous_torque=obs.input_torque,
+            times=jnp.stack([t, t]),
+            recent=(obs, obs),
         )
 
     def update(self, t, obs: Observation) -> "Extremes":
         """Extremes after a step ending at ``t`` with observation ``obs`` there."""
+        t = jnp.asarray(t, dtype=float)
+        t0, t1 = self.times[0], self.times[1]
+        earlier, last = self.recent
+        # the vertex of the parabola through (t0, earlier), (t1, last), (t, obs) where the middle
+        # value is a local extremum and lies in the window; else the new value
+        spaced = (t1 > t0) & (t > t1)
+        width_0 = jnp.where(spaced, t1 - t0, 1.0)
+        width_1 = jnp.where(spaced, t - t1, 1.0)
+
+        def refined(y0, y1, y2):
+            d1 = (y1 - y0) / width_0
+            d2 = (y2 - y1) / width_1
+            curvature = (d2 - d1) / (width_0 + width_1)
+            extremum = spaced & ((y1 - y0) * (y2 - y1) < 0) & (curvature != 0)
+            safe = jnp.where(extremum, curvature, 1.0)
+            s = jnp.clip(0.5 * width_0 - d1 / (2 * safe), 0.0, width_0 + width_1)  # vertex - t0
+            vertex = y0 + d1 * s + safe * s * (s - width_0)
+            use = extremum & (t0 + s >= self.start)
+            return jnp.where(use, vertex, jnp.where(t >= self.start, y2, jnp.nan))
+
+        between = jax.tree_util.tree_map(refined, earlier, last, obs)
+        hi = lambda old, new: jnp.where(jnp.isnan(new), old, jnp.maximum(old, new))  # noqa: E731
+        lo = lambda old, new: jnp.where(jnp.isnan(new), old, jnp.minimum(old, new))  # noqa: E731
+        # both the new value and the refined one count (the refined one only near an extremum)
         inside = t >= self.start
-        hi = lambda old, new: jnp.where(inside, jnp.maximum(old, new), old)  # noqa: E731
-        lo = lambda old, new: jnp.where(inside, jnp.minimum(old, new), old)  # noqa: E731
-        width = jnp.maximum(t - jnp.maximum(self.previous_time, self.start), 0.0)
-        square = 0.5 * (self.previous_torque**2 + obs.input_torque**2)
+        new = jax.tree_util.tree_map(lambda y: jnp.where(inside, y, jnp.nan), obs)
+        width = jnp.maximum(t - jnp.maximum(t1, self.start), 0.0)
+        square = 0.5 * (last.input_torque**2 + obs.input_torque**2)
+
+        def both(fn, old, attribute):
+            return fn(fn(old, attribute(new)), attribute(between))
+
         return Extremes(
             start=self.start,
             duration=self.duration + width,
-            acceleration_min=lo(self.acceleration_min, obs.accelerations),
-            acceleration_max=hi(self.acceleration_max, obs.accelerations),
-            body_acceleration_max=hi(self.body_acceleration_max, obs.body_accelerations),
-            input_torque_min=lo(self.input_torque_min, obs.input_torque),
-            input_torque_max=hi(self.input_torque_max, obs.input_torque),
+            acceleration_min=both(lo, self.acceleration_min, lambda o: o.accelerations),
+            acceleration_max=both(hi, self.acceleration_max, lambda o: o.accelerations),
+            body_acceleration_max=both(hi, self.body_acceleration_max, lambda o: o.body_accelerations),
+            input_torque_min=both(lo, self.input_torque_min, lambda o: o.input_torque),
+            input_torque_max=both(hi, self.input_torque_max, lambda o: o.input_torque),
             input_torque_square_integral=self.input_torque_square_integral + width * square,
-            normal_force_max={k: hi(v, obs.normal_force[k]) for k, v in self.normal_force_max.items()},
-            penetration_max={k: hi(v, obs.penetration[k]) for k, v in self.penetration_max.items()},
-            constraint_violation_max=hi(self.constraint_violation_max, obs.constraint_violation),
-            previous_time=jnp.asarray(t, dtype=float),
-            previous_torque=obs.input_torque,
+            normal_force_max={
+                k: both(hi, v, lambda o, k=k: o.normal_force[k]) for k, v in self.normal_force_max.items()
+            },
+            penetration_max={k: both(hi, v, lambda o, k=k: o.penetration[k]) for k, v in self.penetration_max.items()},
+            constraint_violation_max=both(hi, self.constraint_violation_max, lambda o: o.constraint_violation),
+            times=jnp.stack([t1, t]),
+            recent=(last, obs),
         )
 
 
 class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
     """A diffrax solver that runs ``solver`` and carries ``Extremes`` in its solver state.
 
-    After each step it evaluates ``observe(t1, y1, args)`` at the step's end; diffrax keeps the
-    new solver state only if the step is accepted, so rejected steps leave the extremes alone.
+    After each step it evaluates ``observe`` at the step's midpoint (from the step's dense output)
+    and at its end; diffrax keeps the new solver state only if the step is accepted, so rejected
+    steps leave the extremes alone.
     Read the result with ``SaveAt(solver_state=True)``: ``sol.solver_state[1]``.
 
     Attributes:
@@ -166,6 +205,9 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         inner, extremes = solver_state
         y1, y_error, dense_info, inner, result = self.solver.step(terms, t0, t1, y0, args, inner, made_jump)
+        t_mid = 0.5 * (t0 + t1)
+        y_mid = self.solver.interpolation_cls(t0=t0, t1=t1, **dense_info).evaluate(t_mid)
+        extremes = extremes.update(t_mid, self.observe(t_mid, y_mid, args))
         return y1, y_error, dense_info, (inner, extremes.update(t1, self.observe(t1, y1, args))), result
 
     def func(self, terms, t0, y0, args):
