@@ -41,7 +41,9 @@ class Trajectory(eqx.Module):
             force (N) that body_j exerts on body_i at the joint (see ``joint_force``).
         constraint_violation: max |Φ| over constraint rows (N,), m or rad.
         velocity_violation: max |Φ̇| (N,), m/s or rad/s.
-        clearance: per clearance joint a dict of outputs (eccentricity, penetration, forces, mode).
+        clearance: per clearance joint its ``ClearanceOutputs`` over time (eccentricity, penetration,
+            forces, slip, impact velocity, friction state); attribute or mapping access
+            (``traj.clearance["B"].normal_force`` or ``traj.clearance["B"]["normal_force"]``).
         extremes: peaks, extremes and the input-torque RMS taken from the solver's steps over the
             statistics window (``Extremes``; independent of the output grid). Named statistics:
             ``jaxclear.analysis.statistics``.

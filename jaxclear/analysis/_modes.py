@@ -40,8 +40,7 @@ def contact_modes(t, penetration, minimum_duration: float) -> np.ndarray:
 
 def crank_period(mechanism) -> float | None:
     """Period of a constant-speed driver, s (``None`` if not constant speed)."""
-    d = mechanism.driver
-    speed = getattr(d, "speed", None)
+    speed = None if mechanism.driver is None else mechanism.driver.constant_speed
     if speed is None or float(speed) == 0.0:
         return None
     return float(2 * np.pi / abs(float(speed)))

@@ -140,6 +140,11 @@ class AbstractDriver(eqx.Module):
     def bodies(self):
         return (self.body, self.relative_to)
 
+    @property
+    def constant_speed(self) -> Float[Array, ""] | None:
+        """Constant angular speed ω, rad/s, or ``None`` if the prescribed speed varies."""
+        return None
+
     def constraint(self, index, q, t):
         _, phi = body_coordinates(q, index(self.body))
         _, phi_ref = body_coordinates(q, index(self.relative_to))
@@ -166,6 +171,10 @@ class ConstantSpeedDriver(AbstractDriver):
 
     def angle(self, t):
         return self.initial_angle + self.speed * t
+
+    @property
+    def constant_speed(self) -> Float[Array, ""]:
+        return self.speed
 
 
 class FunctionDriver(AbstractDriver):
