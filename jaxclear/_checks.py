@@ -6,6 +6,7 @@ value checks fall to the compiled solve's input checks (``Trajectory.input_error
 """
 
 import jax
+import jax.core  # jax.core.Tracer: imported for type checkers (jax imports it itself)
 import numpy as np
 
 from ._errors import ModelError

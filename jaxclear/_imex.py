@@ -69,7 +69,8 @@ class _AffineKenCarpInterpolation(diffrax.AbstractLocalInterpolation):
     inner: diffrax.AbstractLocalInterpolation
 
     def __init__(self, *, t0, t1, y0, y1, k, variant):
-        self.t0, self.t1 = t0, t1
+        # pyright reads diffrax's `AbstractVar` t0/t1 as class variables (pyright#4965)
+        self.t0, self.t1 = t0, t1  # pyright: ignore[reportIncompatibleVariableOverride]
         self.inner = TABLEAUS[variant].interpolation(t0=t0, t1=t1, y0=y0, y1=y1, k=k)
 
     def evaluate(self, t0, t1=None, left=True):

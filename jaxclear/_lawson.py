@@ -94,7 +94,8 @@ class LawsonInterpolation(diffrax.AbstractLocalInterpolation):
 
     def __init__(self, *, t0, t1, y0, y1, k, hl, k_rows, rows):
         del y1  # diffrax passes it; the interpolant does not need it
-        self.t0, self.t1, self.y0, self.k, self.hl, self.k_rows, self.rows = t0, t1, y0, k, hl, k_rows, rows
+        # pyright reads diffrax's `AbstractVar` t0/t1 as class variables (pyright#4965)
+        self.t0, self.t1, self.y0, self.k, self.hl, self.k_rows, self.rows = t0, t1, y0, k, hl, k_rows, rows  # pyright: ignore[reportIncompatibleVariableOverride]
 
     def evaluate(self, t0, t1=None, left=True):
         del left

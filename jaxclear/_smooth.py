@@ -53,7 +53,7 @@ def smooth_sign(x: ArrayLike, width: ArrayLike) -> Float[Array, "..."]:
 
 def smooth_max(x: ArrayLike, floor: ArrayLike, width: ArrayLike) -> Float[Array, "..."]:
     """C¹ ``max(x, floor)``, exact outside ``[floor - width/2, floor + width/2]`` (``floor + w/8`` at ``x = floor``)."""
-    return floor + smooth_ramp(jnp.asarray(x) - floor + 0.5 * width, width)
+    return jnp.asarray(floor) + smooth_ramp(jnp.asarray(x) - floor + 0.5 * width, width)
 
 
 def safe_norm(v: ArrayLike, axis: int = -1) -> Float[Array, "..."]:

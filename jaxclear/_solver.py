@@ -109,7 +109,9 @@ class SolverConfig(eqx.Module):
         if self.imex and num_explicit is not None and stiff is not None:
             return AffineKenCarp(stiff, num_explicit, IMEX_ORDER[self.method])
         if self.imex and num_explicit is not None:
-            root = DiagonalNewton(self.newton_rtol, self.newton_atol, num_explicit, affine=True)
+            root = DiagonalNewton(
+                rtol=self.newton_rtol, atol=self.newton_atol, num_explicit=num_explicit, affine=True
+            )
             return IMEX[self.method](root_finder=root)
         if self.implicit:
             root = diffrax.VeryChord(rtol=self.newton_rtol, atol=self.newton_atol)

@@ -1,6 +1,7 @@
 """Benchmark mechanisms: the slider–crank of MODEL.md §6 and a four-bar linkage."""
 
 import jax.numpy as jnp
+from jaxtyping import ArrayLike
 
 from ._errors import ModelError
 from .model._body import Body
@@ -21,16 +22,16 @@ def _gravity(gravity: bool | float):
 
 def slider_crank(
     *,
-    rpm: float = 5000.0,
-    crank_length: float = 0.05,
-    rod_length: float = 0.12,
-    crank_mass: float = 0.30,
-    rod_mass: float = 0.21,
-    slider_mass: float = 0.14,
-    crank_inertia: float = 1.0e-4,
-    rod_inertia: float = 2.5e-4,
-    slider_inertia: float = 1.0e-4,
-    initial_angle: float = 0.0,
+    rpm: ArrayLike = 5000.0,
+    crank_length: ArrayLike = 0.05,
+    rod_length: ArrayLike = 0.12,
+    crank_mass: ArrayLike = 0.30,
+    rod_mass: ArrayLike = 0.21,
+    slider_mass: ArrayLike = 0.14,
+    crank_inertia: ArrayLike = 1.0e-4,
+    rod_inertia: ArrayLike = 2.5e-4,
+    slider_inertia: ArrayLike = 1.0e-4,
+    initial_angle: ArrayLike = 0.0,
     gravity: bool | float = False,
     clearance_joints=(),
     **clearance_options,
@@ -86,7 +87,7 @@ def slider_crank(
     return Mechanism(
         bodies=bodies,
         joints=(*joints, guide),
-        driver=ConstantSpeedDriver("crank", speed=rpm * RPM, initial_angle=th),
+        driver=ConstantSpeedDriver(body="crank", speed=rpm * RPM, initial_angle=th),
         clearance_joints=clearance_elements,
         gravity=_gravity(gravity),
     )
@@ -94,15 +95,15 @@ def slider_crank(
 
 def four_bar(
     *,
-    ground_length: float = 0.30,
-    crank_length: float = 0.10,
-    coupler_length: float = 0.30,
-    rocker_length: float = 0.25,
-    crank_mass: float = 0.2,
-    coupler_mass: float = 0.5,
-    rocker_mass: float = 0.4,
-    initial_angle: float = jnp.pi / 3,
-    rpm: float | None = 60.0,
+    ground_length: ArrayLike = 0.30,
+    crank_length: ArrayLike = 0.10,
+    coupler_length: ArrayLike = 0.30,
+    rocker_length: ArrayLike = 0.25,
+    crank_mass: ArrayLike = 0.2,
+    coupler_mass: ArrayLike = 0.5,
+    rocker_mass: ArrayLike = 0.4,
+    initial_angle: ArrayLike = jnp.pi / 3,
+    rpm: ArrayLike | None = 60.0,
     gravity: bool | float = True,
     clearance_joints=(),
     **clearance_options,
@@ -145,7 +146,7 @@ def four_bar(
         "O4": RevoluteJoint("O4", "ground", (d, 0.0), "rocker", (-0.5 * c, 0.0)),
     }
     clearance = make_clearance_joints(revolute, clearance_joints, clearance_options, "four_bar")
-    driver = None if rpm is None else ConstantSpeedDriver("crank", speed=rpm * RPM, initial_angle=th)
+    driver = None if rpm is None else ConstantSpeedDriver(body="crank", speed=rpm * RPM, initial_angle=th)
     return Mechanism(
         bodies=bodies,
         joints=tuple(j for n, j in revolute.items() if n not in {c.name for c in clearance}),

@@ -1,8 +1,11 @@
 """Shared test utilities (after lineax/tests/helpers.py)."""
 
+import contextlib
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import jaxtyping
 import numpy as np
 
 NUM_POINTS = 4001
@@ -67,3 +70,18 @@ def contact_kinematics(delta, rate, impact, tangential=0.0):
         jnp.asarray(impact, dtype=float),
         jnp.asarray(tangential, dtype=float),
     )
+
+
+@contextlib.contextmanager
+def without_runtime_type_checks():
+    """Switch jaxtyping's runtime checks (pyproject ``--jaxtyping-packages``) off inside the block.
+
+    For tests of the package's own friendly errors on arguments whose annotation the runtime
+    checker would reject first (with a ``TypeError`` of its own).
+    """
+    before = jaxtyping.config.jaxtyping_disable
+    jaxtyping.config.update("jaxtyping_disable", True)
+    try:
+        yield
+    finally:
+        jaxtyping.config.update("jaxtyping_disable", before)

@@ -96,7 +96,7 @@ def damped_point_force(
         The normal force, ``>= 0`` and exactly 0 for ``δ <= 0``.
     """
     delta = smooth_ramp(kin.penetration, smoothing.penetration_width)
-    elastic = stiffness * safe_pow(delta, exponent)
+    elastic = jnp.asarray(stiffness) * safe_pow(delta, exponent)
     factor = damping_factor(
         hysteresis, kin.penetration_rate, kin.impact_velocity, smoothing.force_width
     )

@@ -85,7 +85,7 @@ def local_penetration(
 ) -> Float[Array, "..."]:
     """``e cos ψ − c`` written as ``δ − 2e sin²(ψ/2)`` (no cancellation at small δ), m."""
     s = jnp.sin(0.5 * jnp.asarray(angle))
-    return delta - 2.0 * eccentricity * s * s
+    return jnp.asarray(delta) - 2.0 * eccentricity * s * s
 
 
 def _angle_minus_sine(theta: Float[Array, ""]) -> Float[Array, ""]:

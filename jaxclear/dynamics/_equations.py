@@ -64,10 +64,10 @@ def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = 
         if caches is not None:
             caches[element.name] = cache
     for k, group in enumerate(groups(mechanism)):
-        if len(group) > 1:
-            force, cache = batched_force_and_cache(mechanism, group, q, qd, t, states)
-        else:
+        if len(group) == 1:
             force, cache = clearance.force_and_cache(group[0], mechanism.index, q, qd, states[group[0].name])
+        else:
+            force, cache = batched_force_and_cache(mechanism, group, q, qd, t, states)
         total = total + force
         if caches is not None:
             caches[k] = cache
@@ -134,11 +134,11 @@ def evaluate(mechanism, t, y) -> Evaluation:
     for e in mechanism.forces:
         rates[e.name] = e.state_derivative_cached(caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name])
     for k, group in enumerate(groups(mechanism)):
-        if len(group) > 1:
-            rates.update(batched_state_rates(mechanism, group, caches[k], q, qd, qdd, t, states))
-        else:
+        if len(group) == 1:
             e = group[0]
             rates[e.name] = clearance.state_derivative_cached(e, caches[k], mechanism.index, q, qd, qdd, states[e.name])
+        else:
+            rates.update(batched_state_rates(mechanism, group, caches[k], q, qd, qdd, t, states))
     return Evaluation(
         q=q, qd=qd, qdd=qdd, multipliers=lam, phi=phi, phi_dot=phi_dot, forces=forces, states=states, state_rates=rates
     )
@@ -157,11 +157,11 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     n = mechanism.num_coordinates
     rates = {e.name: e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name]) for e in mechanism.forces}
     for group in groups(mechanism):
-        if len(group) > 1:
-            rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
-        else:
+        if len(group) == 1:
             e = group[0]
             rates[e.name] = clearance.stiff_state_derivative(e, mechanism.index, q, qd, states[e.name])
+        else:
+            rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
     parts = [jnp.zeros((2 * n,), y.dtype)] + [
         jnp.reshape(rates[e.name], (-1,)).astype(y.dtype) for e in mechanism.force_elements
     ]

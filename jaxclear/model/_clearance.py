@@ -12,7 +12,7 @@ from typing import ClassVar
 import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Float
+from jaxtyping import Array, ArrayLike, Float
 
 from .._checks import (
     check_finite,
@@ -98,7 +98,7 @@ class ClearanceJoint(eqx.Module):
 
     @classmethod
     def replacing(
-        cls, joint, clearance: float | None = None, journal_body: str | None = None, **kwargs
+        cls, joint, clearance: ArrayLike | None = None, journal_body: str | None = None, **kwargs
     ) -> "ClearanceJoint":
         """A clearance joint at the place of an ideal ``RevoluteJoint``.
 

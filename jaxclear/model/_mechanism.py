@@ -96,6 +96,13 @@ class Mechanism(eqx.Module):
                 return i
         raise ModelError(f"Unknown body {name!r}; known: {[b.name for b in self.bodies]}.")
 
+    def body_index(self, name: str) -> int:
+        """Coordinate index of the moving body ``name``; ``ModelError`` for ground or an unknown name."""
+        i = self.index(name)
+        if i is None:
+            raise ModelError(f"{GROUND!r} has no coordinates; pick one of {list(self.body_names)}.")
+        return i
+
     @property
     def body_names(self) -> tuple[str, ...]:
         return tuple(b.name for b in self.bodies)
