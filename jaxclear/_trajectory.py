@@ -10,6 +10,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from ._extremes import Extremes
+from .model import Mechanism
 
 
 INPUT_ERRORS = {
@@ -46,7 +47,7 @@ class Trajectory(eqx.Module):
             (``traj.clearance["B"].normal_force`` or ``traj.clearance["B"]["normal_force"]``).
         extremes: peaks, extremes and the input-torque RMS taken from the solver's steps over the
             statistics window (``Extremes``; independent of the output grid). Named statistics:
-            ``jaxclear.analysis.statistics``.
+            ``jaxclear.analysis.statistics``. ``None`` if ``simulate`` ran with ``extremes=False``.
         num_steps, num_accepted_steps, num_rejected_steps: solver statistics (scalars).
         result: diffrax outcome (``diffrax.RESULTS``); success unless the solve failed.
         input_error: 0, or the code of a check of the inputs made inside the compiled solve
@@ -57,50 +58,51 @@ class Trajectory(eqx.Module):
         mechanism: the simulated mechanism (names, parameters).
     """
 
-    t: Float[Array, " N"]
-    q: Float[Array, "N n"]
-    qd: Float[Array, "N n"]
-    qdd: Float[Array, "N n"]
-    internal_state: Float[Array, "N S"]
-    multipliers: Float[Array, "N m"]
-    input_torque: Float[Array, " N"]
+    # `*batch`: empty for one run, the batch axes of a batched run (built by vmap of one run).
+    t: Float[Array, "*batch N"]
+    q: Float[Array, "*batch N n"]
+    qd: Float[Array, "*batch N n"]
+    qdd: Float[Array, "*batch N n"]
+    internal_state: Float[Array, "*batch N S"]
+    multipliers: Float[Array, "*batch N m"]
+    input_torque: Float[Array, "*batch N"]
     reactions: dict
-    constraint_violation: Float[Array, " N"]
-    velocity_violation: Float[Array, " N"]
+    constraint_violation: Float[Array, "*batch N"]
+    velocity_violation: Float[Array, "*batch N"]
     clearance: dict
-    extremes: Extremes
-    num_steps: Int[Array, ""]
-    num_accepted_steps: Int[Array, ""]
-    num_rejected_steps: Int[Array, ""]
+    extremes: Extremes | None
+    num_steps: Int[Array, "*batch"]
+    num_accepted_steps: Int[Array, "*batch"]
+    num_rejected_steps: Int[Array, "*batch"]
     result: diffrax.RESULTS
-    input_error: Int[Array, ""]
-    t_final: Float[Array, ""]
-    y_final: Float[Array, " S"]
-    mechanism: eqx.Module
+    input_error: Int[Array, "*batch"]
+    t_final: Float[Array, "*batch"]
+    y_final: Float[Array, "*batch Y"]  # the full state (q, q̇, internal states): Y = 2n + S
+    mechanism: Mechanism
 
     @property
     def succeeded(self):
         """Boolean (array for batched runs): did the solve reach the end time?"""
         return (self.result == diffrax.RESULTS.successful) & (self.input_error == 0)
 
-    def coordinates(self, body: str) -> Float[Array, "N 3"]:
+    def coordinates(self, body: str) -> Float[Array, "*batch N 3"]:
         """(x, y, φ) of a body over time."""
-        i = self.mechanism.index(body)
+        i = self.mechanism.body_index(body)
         return self.q[..., 3 * i : 3 * i + 3]
 
-    def velocities(self, body: str) -> Float[Array, "N 3"]:
-        i = self.mechanism.index(body)
+    def velocities(self, body: str) -> Float[Array, "*batch N 3"]:
+        i = self.mechanism.body_index(body)
         return self.qd[..., 3 * i : 3 * i + 3]
 
-    def accelerations(self, body: str) -> Float[Array, "N 3"]:
-        i = self.mechanism.index(body)
+    def accelerations(self, body: str) -> Float[Array, "*batch N 3"]:
+        i = self.mechanism.body_index(body)
         return self.qdd[..., 3 * i : 3 * i + 3]
 
-    def joint_force(self, joint: str) -> Float[Array, "N 2"]:
+    def joint_force(self, joint: str) -> Float[Array, "*batch N 2"]:
         """Force (N) that body_j exerts on body_i at an ideal revolute joint, global components."""
         return -self.reactions[joint]
 
-    def joint_force_magnitude(self, joint: str) -> Float[Array, " N"]:
+    def joint_force_magnitude(self, joint: str) -> Float[Array, "*batch N"]:
         return jnp.linalg.norm(self.reactions[joint], axis=-1)
 
     def truncated(self) -> "Trajectory":
