@@ -182,12 +182,14 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
     observe: Callable = eqx.field(static=True)
     start: Float[Array, ""]
 
+    # pyright reads diffrax's AbstractVar/AbstractClassVar attributes of AbstractSolver as class
+    # variables; diffrax's own wrapping solvers (HalfSolver) override them with properties too.
     @property
-    def term_structure(self):
+    def term_structure(self):  # pyright: ignore[reportIncompatibleVariableOverride]
         return self.solver.term_structure
 
     @property
-    def interpolation_cls(self):  # pyright: ignore[reportIncompatibleVariableOverride]
+    def interpolation_cls(self):  # pyright: ignore[reportIncompatibleMethodOverride]
         return self.solver.interpolation_cls
 
     def order(self, terms):
