@@ -6,6 +6,7 @@ from typing import Any
 import diffrax
 import equinox as eqx
 import jax
+import jax.core  # jax.core.Tracer: imported for type checkers (jax imports it itself)
 import jax.numpy as jnp
 import numpy as np
 
@@ -67,7 +68,7 @@ def check_parameters(mechanism) -> None:
             raise ModelError(f"mechanism parameter {where} is not finite ({np.asarray(leaf)}); give a finite value.")
 
 
-def _outputs(mechanism, t, y):
+def _outputs(mechanism, t, y) -> dict[str, Any]:
     ev = evaluate(mechanism, t, y)
     lam = ev.multipliers
     slices = mechanism.constraint_slices
@@ -228,7 +229,8 @@ def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig,
                 "it could not be detected here because the transformation is outside a jax.jit."
             ) from e
         raise
-    ys, y_final = sol.ys[0], sol.ys[1][-1]
+    # diffrax types Solution.ys/ts as optional; the SaveAt above always saves both
+    ys, y_final = sol.ys[0], sol.ys[1][-1]  # pyright: ignore[reportOptionalSubscript]
     if offset:
         ys = ys + jax.vmap(lambda y: memory_offset_shift(mechanism, y))(ys)
         y_final = y_final + memory_offset_shift(mechanism, y_final)
@@ -252,7 +254,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig,
         num_rejected_steps=sol.stats["num_rejected_steps"],
         result=sol.result,
         input_error=input_error,
-        t_final=sol.ts[1][-1],
+        t_final=sol.ts[1][-1],  # pyright: ignore[reportOptionalSubscript]
         y_final=y_final,
         mechanism=mechanism,
     )
