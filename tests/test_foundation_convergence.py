@@ -9,8 +9,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 from helpers import contact_kinematics
+
 from jaxclear.contact import (
     ContactGeometry,
     ElasticFoundation,

@@ -9,13 +9,12 @@ amplifies differences (MODEL.md §5b).
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from reference.scipy_slider_crank import simulate as reference_simulate
 
 import jaxclear
 from jaxclear.contact import LankaraniNikravesh, Smoothing
 from jaxclear.friction import NoFriction
 from jaxclear.mechanisms import slider_crank
-
-from reference.scipy_slider_crank import simulate as reference_simulate
 
 RPM = 5000.0
 PERIOD = 60.0 / RPM

@@ -10,10 +10,10 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from helpers import contact_kinematics
 from scipy.integrate import solve_ivp
 from scipy.special import gamma
 
-from helpers import contact_kinematics
 from jaxclear.contact import (
     ContactGeometry,
     Hertz,

@@ -49,11 +49,11 @@ JOINTS = {
 }
 
 
-def ideal_closed_form(theta, omega, r=R_CRANK, l=L_ROD):
-    """Slider x, v, a for x = r cos(th) + sqrt(l^2 - r^2 sin^2(th)), th = omega t (exact derivatives)."""
+def ideal_closed_form(theta, omega, r=R_CRANK, rod=L_ROD):
+    """Slider x, v, a for x = r cos(th) + sqrt(l^2 - r^2 sin^2(th)), l = rod, th = omega t (exact derivatives)."""
     th = np.asarray(theta, dtype=float)
     s, c = np.sin(th), np.cos(th)
-    S = np.sqrt(l**2 - r**2 * s**2)
+    S = np.sqrt(rod**2 - r**2 * s**2)
     x = r * c + S
     dx = -r * s - r**2 * s * c / S
     ddx = -r * c - r**2 * (c**2 - s**2) / S - r**4 * s**2 * c**2 / S**3

@@ -1,8 +1,13 @@
 """Self-checks of the independent SciPy reference (tests/reference/scipy_slider_crank.py)."""
 import pytest
 
-from .scipy_slider_crank import (check_energy, check_ideal, check_small_clearance,
-                                 check_smooth_vs_sharp, ideal_closed_form)
+from .scipy_slider_crank import (
+    check_energy,
+    check_ideal,
+    check_small_clearance,
+    check_smooth_vs_sharp,
+    ideal_closed_form,
+)
 
 
 def test_closed_form_dead_centres():
