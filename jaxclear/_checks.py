@@ -18,7 +18,9 @@ def is_concrete(x) -> bool:
 
 
 def _fail(owner: str, name: str, requirement: str, value, unit: str, fix: str):
-    raise ModelError(f"{owner}: {name} must be {requirement}, got {value}{(' ' + unit) if unit else ''}; {fix}.")
+    raise ModelError(
+        f"{owner}: {name} must be {requirement}, got {value}{(' ' + unit) if unit else ''}; {fix}."
+    )
 
 
 def check_finite(owner: str, name: str, value, fix: str = "pass a real number") -> None:
@@ -27,14 +29,18 @@ def check_finite(owner: str, name: str, value, fix: str = "pass a real number") 
         _fail(owner, name, "finite", np.asarray(value), "", fix)
 
 
-def check_positive(owner: str, name: str, value, unit: str = "", fix: str = "pass a positive value in SI units") -> None:
+def check_positive(
+    owner: str, name: str, value, unit: str = "", fix: str = "pass a positive value in SI units"
+) -> None:
     """Raise ``ModelError`` unless the concrete ``value`` is finite and ``> 0`` (every element)."""
     check_finite(owner, name, value)
     if is_concrete(value) and not np.all(np.asarray(value) > 0):
         _fail(owner, name, "> 0", np.asarray(value), unit, fix)
 
 
-def check_nonnegative(owner: str, name: str, value, unit: str = "", fix: str = "pass a value >= 0 in SI units") -> None:
+def check_nonnegative(
+    owner: str, name: str, value, unit: str = "", fix: str = "pass a value >= 0 in SI units"
+) -> None:
     """Raise ``ModelError`` unless the concrete ``value`` is finite and ``>= 0`` (every element)."""
     check_finite(owner, name, value)
     if is_concrete(value) and not np.all(np.asarray(value) >= 0):
@@ -53,7 +59,14 @@ def check_restitution(owner: str, value, name: str = "restitution") -> None:
     if is_concrete(value):
         v = np.asarray(value)
         if not np.all((v > 0) & (v <= 1)):
-            _fail(owner, name, "in (0, 1]", v, "", "use 1 for a perfectly elastic contact and e.g. 0.9 for steel on steel")
+            _fail(
+                owner,
+                name,
+                "in (0, 1]",
+                v,
+                "",
+                "use 1 for a perfectly elastic contact and e.g. 0.9 for steel on steel",
+            )
 
 
 def check_count(owner: str, name: str, value) -> None:

@@ -35,7 +35,9 @@ def body_coordinates(q: Float[Array, " n"], index: int | None):
     return q[3 * index : 3 * index + 2], q[3 * index + 2]
 
 
-def point_position(q: Float[Array, " n"], index: int | None, local: Float[Array, "2"]) -> Float[Array, "2"]:
+def point_position(
+    q: Float[Array, " n"], index: int | None, local: Float[Array, "2"]
+) -> Float[Array, "2"]:
     """Global position r + A(φ) s' of a point with local vector ``local`` on body ``index``.
 
     Points on ground (``index is None``) are given in global coordinates.

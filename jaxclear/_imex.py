@@ -58,7 +58,11 @@ class _Tableau:
         return a
 
 
-TABLEAUS = {3: _Tableau(diffrax.KenCarp3), 4: _Tableau(diffrax.KenCarp4), 5: _Tableau(diffrax.KenCarp5)}
+TABLEAUS = {
+    3: _Tableau(diffrax.KenCarp3),
+    4: _Tableau(diffrax.KenCarp4),
+    5: _Tableau(diffrax.KenCarp5),
+}
 
 
 class _AffineKenCarpInterpolation(diffrax.AbstractLocalInterpolation):

@@ -52,7 +52,10 @@ def _tsit5_dense_weights(theta):
     t = theta
     return jnp.stack(
         [
-            -1.0530884977290216 * t * (t - 1.3299890189751412) * (t**2 - 1.4364028541716351 * t + 0.7139816917074209),
+            -1.0530884977290216
+            * t
+            * (t - 1.3299890189751412)
+            * (t**2 - 1.4364028541716351 * t + 0.7139816917074209),
             0.1017 * t**2 * (t**2 - 2.1966568338249754 * t + 1.2949852507374631),
             2.490627285651252793 * t**2 * (t**2 - 2.38535645472061657 * t + 1.57803468208092486),
             -16.54810288924490272 * (t - 1.21712927295533244) * (t - 0.61620406037800089) * t**2,
@@ -95,7 +98,15 @@ class LawsonInterpolation(diffrax.AbstractLocalInterpolation):
     def __init__(self, *, t0, t1, y0, y1, k, hl, k_rows, rows):
         del y1  # diffrax passes it; the interpolant does not need it
         # pyright reads diffrax's `AbstractVar` t0/t1 as class variables (pyright#4965)
-        self.t0, self.t1, self.y0, self.k, self.hl, self.k_rows, self.rows = t0, t1, y0, k, hl, k_rows, rows  # pyright: ignore[reportIncompatibleVariableOverride]
+        self.t0, self.t1, self.y0, self.k, self.hl, self.k_rows, self.rows = (
+            t0,
+            t1,
+            y0,
+            k,
+            hl,
+            k_rows,
+            rows,
+        )  # pyright: ignore[reportIncompatibleVariableOverride]
 
     def evaluate(self, t0, t1=None, left=True):
         del left
@@ -106,7 +117,9 @@ class LawsonInterpolation(diffrax.AbstractLocalInterpolation):
         plain = self.y0 + jnp.sum(weights[:, None] * self.k, axis=0)
         if not self.rows:
             return plain
-        exponents = jnp.minimum((theta - jnp.asarray(_C))[:, None] * self.hl[None, :], MAX_DENSE_EXPONENT)
+        exponents = jnp.minimum(
+            (theta - jnp.asarray(_C))[:, None] * self.hl[None, :], MAX_DENSE_EXPONENT
+        )
         decayed = jnp.exp(theta * self.hl) * _get_rows(self.y0, self.rows) + jnp.sum(
             weights[:, None] * jnp.exp(exponents) * self.k_rows, axis=0
         )
@@ -152,7 +165,11 @@ class LawsonTsit5(diffrax.AbstractAdaptiveSolver):
         y0_rows = _get_rows(y0, rows) if rows else jnp.zeros((0,), dtype)
         # ks[j] = h f_j on every row (Tsit5 on the plain rows); k_rows[j] = h N_j on the decay rows
         ks = jnp.zeros((_STAGES,) + y0.shape, dtype).at[0].set(h * f0)
-        k_rows = jnp.zeros((_STAGES, len(rows)), dtype).at[0].set(h * _get_rows(f0, rows) - hl * y0_rows if rows else 0.0)
+        k_rows = (
+            jnp.zeros((_STAGES, len(rows)), dtype)
+            .at[0]
+            .set(h * _get_rows(f0, rows) - hl * y0_rows if rows else 0.0)
+        )
 
         def stage(i, carry):
             # One stage per iteration: the vector field is compiled once, not seven times (XLA
@@ -164,7 +181,9 @@ class LawsonTsit5(diffrax.AbstractAdaptiveSolver):
             if rows:
                 # exp((c_i - c_j) h l) for j < i; later stages have a_ij = 0 (exponent capped at 0)
                 factors = jnp.exp(jnp.minimum((ci - c)[:, None] * hl[None, :], 0.0))
-                decayed = jnp.exp(ci * hl) * y0_rows + jnp.sum(a[:, None] * factors * k_rows, axis=0)
+                decayed = jnp.exp(ci * hl) * y0_rows + jnp.sum(
+                    a[:, None] * factors * k_rows, axis=0
+                )
                 y_stage = _set_rows(y_stage, rows, decayed)
             f = terms.vf(t0 + ci * h, y_stage, args)
             ks = ks.at[i].set(h * f)

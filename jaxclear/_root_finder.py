@@ -68,14 +68,20 @@ class DiagonalNewton(optx.AbstractRootFinder):
         diff = fx / diag
         new_y = y - diff
         diffsize = self.norm(diff / (self.atol + self.rtol * jnp.abs(new_y)))
-        return new_y, _State(diffsize=diffsize, diffsize_prev=state.diffsize, step=state.step + 1), aux
+        return (
+            new_y,
+            _State(diffsize=diffsize, diffsize_prev=state.diffsize, step=state.step + 1),
+            aux,
+        )
 
     def terminate(self, fn, y, args, options, state: _State, tags):
         del fn, y, args, options, tags
         if self.affine:
             done = state.step >= 1
             return done, optx.RESULTS.where(
-                done & ~jnp.isfinite(state.diffsize), optx.RESULTS.nonlinear_divergence, optx.RESULTS.successful
+                done & ~jnp.isfinite(state.diffsize),
+                optx.RESULTS.nonlinear_divergence,
+                optx.RESULTS.successful,
             )
         at_least_two = state.step >= 2
         rate = state.diffsize / state.diffsize_prev

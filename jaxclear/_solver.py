@@ -14,8 +14,17 @@ from ._imex import AffineKenCarp
 from ._lawson import LawsonTsit5
 from ._root_finder import DiagonalNewton
 
-EXPLICIT = {"tsit5": diffrax.Tsit5, "dopri5": diffrax.Dopri5, "dopri8": diffrax.Dopri8, "bosh3": diffrax.Bosh3}
-IMPLICIT = {"kvaerno3": diffrax.Kvaerno3, "kvaerno4": diffrax.Kvaerno4, "kvaerno5": diffrax.Kvaerno5}
+EXPLICIT = {
+    "tsit5": diffrax.Tsit5,
+    "dopri5": diffrax.Dopri5,
+    "dopri8": diffrax.Dopri8,
+    "bosh3": diffrax.Bosh3,
+}
+IMPLICIT = {
+    "kvaerno3": diffrax.Kvaerno3,
+    "kvaerno4": diffrax.Kvaerno4,
+    "kvaerno5": diffrax.Kvaerno5,
+}
 IMEX = {"kencarp3": diffrax.KenCarp3, "kencarp4": diffrax.KenCarp4, "kencarp5": diffrax.KenCarp5}
 IMEX_ORDER = {"kencarp3": 3, "kencarp4": 4, "kencarp5": 5}  # AffineKenCarp variant of each
 EXPONENTIAL = {"lawson-tsit5": LawsonTsit5}
@@ -67,13 +76,17 @@ class SolverConfig(eqx.Module):
 
     def __check_init__(self):
         if self.method not in METHODS:
-            raise ValueError(f"solver method {self.method!r} is unknown; choose one of {', '.join(METHODS)}.")
+            raise ValueError(
+                f"solver method {self.method!r} is unknown; choose one of {', '.join(METHODS)}."
+            )
         for name in ("rtol", "atol", "newton_rtol", "newton_atol", "memory_speed"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0):
                 raise ValueError(f"SolverConfig.{name} must be a positive number, got {value!r}.")
         if not (isinstance(self.max_steps, int) and self.max_steps > 0):
-            raise ValueError(f"SolverConfig.max_steps must be a positive integer, got {self.max_steps!r}.")
+            raise ValueError(
+                f"SolverConfig.max_steps must be a positive integer, got {self.max_steps!r}."
+            )
 
     @property
     def implicit(self) -> bool:
@@ -91,7 +104,9 @@ class SolverConfig(eqx.Module):
         """Copy with some settings changed."""
         return dataclasses.replace(self, **changes)
 
-    def make_solver(self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None):
+    def make_solver(
+        self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None
+    ):
         """The diffrax solver.
 
         ``num_explicit``: for IMEX methods, the number of leading state components (q, q̇) that the
@@ -105,7 +120,9 @@ class SolverConfig(eqx.Module):
         if self.method in EXPONENTIAL:
             if decay is None or memory_rows is None:
                 raise ValueError(f"solver method {self.method!r} needs decay= and memory_rows=.")
-            return EXPONENTIAL[self.method](decay, tuple(int(i) for i in np.flatnonzero(memory_rows)))
+            return EXPONENTIAL[self.method](
+                decay, tuple(int(i) for i in np.flatnonzero(memory_rows))
+            )
         if self.imex and num_explicit is not None and stiff is not None:
             return AffineKenCarp(stiff, num_explicit, IMEX_ORDER[self.method])
         if self.imex and num_explicit is not None:
@@ -125,7 +142,9 @@ class SolverConfig(eqx.Module):
         default_p, default_i = (0.3, 0.3) if self.implicit else (0.1, 0.7)
         atol = self.atol
         if memory_rows is not None and np.any(memory_rows):
-            atol = jnp.asarray(np.where(memory_rows, self.atol + self.rtol * self.memory_speed, self.atol))
+            atol = jnp.asarray(
+                np.where(memory_rows, self.atol + self.rtol * self.memory_speed, self.atol)
+            )
         return diffrax.PIDController(
             rtol=self.rtol,
             atol=atol,
@@ -139,7 +158,9 @@ PRESETS = {
     "robust": SolverConfig(method="kvaerno5"),
     "fast": SolverConfig(method="tsit5"),
     "imex": SolverConfig(method="kencarp5"),
-    "accurate": SolverConfig(method="kvaerno5", rtol=1e-9, atol=1e-12, newton_rtol=1e-5, newton_atol=1e-9),
+    "accurate": SolverConfig(
+        method="kvaerno5", rtol=1e-9, atol=1e-12, newton_rtol=1e-5, newton_atol=1e-9
+    ),
 }
 """Named presets: ``robust`` (L-stable implicit Kvaerno5 on the whole state), ``imex`` (KenCarp5:
 implicit only in the declared stiff internal states — LuGre z, impact-memory relaxation — explicit
@@ -175,7 +196,9 @@ def solver_config(solver: "str | SolverConfig", mechanism=None) -> SolverConfig:
         return solver
     if solver == "auto":
         if mechanism is None:
-            raise ValueError("solver 'auto' needs the mechanism to choose; pass a preset or method name instead.")
+            raise ValueError(
+                "solver 'auto' needs the mechanism to choose; pass a preset or method name instead."
+            )
         return recommended_solver(mechanism)
     if solver in PRESETS:
         return PRESETS[solver]

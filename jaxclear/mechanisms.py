@@ -81,9 +81,15 @@ def slider_crank(
         "A": RevoluteJoint("A", "crank", (0.5 * crank, 0.0), "rod", (-0.5 * rod, 0.0)),
         "B": RevoluteJoint("B", "rod", (0.5 * rod, 0.0), "slider", (0.0, 0.0)),
     }
-    clearance_elements = make_clearance_joints(revolute, clearance_joints, clearance_options, "slider_crank")
-    joints = tuple(j for name, j in revolute.items() if name not in {c.name for c in clearance_elements})
-    guide = TranslationalJoint("slider_guide", "slider", (0.0, 0.0), "ground", (0.0, 0.0), axis=(1.0, 0.0))
+    clearance_elements = make_clearance_joints(
+        revolute, clearance_joints, clearance_options, "slider_crank"
+    )
+    joints = tuple(
+        j for name, j in revolute.items() if name not in {c.name for c in clearance_elements}
+    )
+    guide = TranslationalJoint(
+        "slider_guide", "slider", (0.0, 0.0), "ground", (0.0, 0.0), axis=(1.0, 0.0)
+    )
     return Mechanism(
         bodies=bodies,
         joints=(*joints, guide),
@@ -136,8 +142,18 @@ def four_bar(
     rocker_phi = jnp.arctan2(by, bx - d)
     bodies = (
         Body("crank", crank_mass, crank_mass * a**2 / 12, position=(0.5 * ax, 0.5 * ay, th)),
-        Body("coupler", coupler_mass, coupler_mass * b**2 / 12, position=(0.5 * (ax + bx), 0.5 * (ay + by), coupler_phi)),
-        Body("rocker", rocker_mass, rocker_mass * c**2 / 12, position=(0.5 * (d + bx), 0.5 * by, rocker_phi)),
+        Body(
+            "coupler",
+            coupler_mass,
+            coupler_mass * b**2 / 12,
+            position=(0.5 * (ax + bx), 0.5 * (ay + by), coupler_phi),
+        ),
+        Body(
+            "rocker",
+            rocker_mass,
+            rocker_mass * c**2 / 12,
+            position=(0.5 * (d + bx), 0.5 * by, rocker_phi),
+        ),
     )
     revolute = {
         "O2": RevoluteJoint("O2", "ground", (0.0, 0.0), "crank", (-0.5 * a, 0.0)),
@@ -146,7 +162,11 @@ def four_bar(
         "O4": RevoluteJoint("O4", "ground", (d, 0.0), "rocker", (-0.5 * c, 0.0)),
     }
     clearance = make_clearance_joints(revolute, clearance_joints, clearance_options, "four_bar")
-    driver = None if rpm is None else ConstantSpeedDriver(body="crank", speed=rpm * RPM, initial_angle=th)
+    driver = (
+        None
+        if rpm is None
+        else ConstantSpeedDriver(body="crank", speed=rpm * RPM, initial_angle=th)
+    )
     return Mechanism(
         bodies=bodies,
         joints=tuple(j for n, j in revolute.items() if n not in {c.name for c in clearance}),
@@ -157,7 +177,15 @@ def four_bar(
 
 
 CLEARANCE_OPTIONS = frozenset(
-    {"clearance", "journal_body", "geometry", "contact_law", "friction_law", "smoothing", "initial_eccentricity"}
+    {
+        "clearance",
+        "journal_body",
+        "geometry",
+        "contact_law",
+        "friction_law",
+        "smoothing",
+        "initial_eccentricity",
+    }
 )
 """Keyword arguments of ``ClearanceJoint.replacing`` accepted as shared or per-joint options."""
 
@@ -181,7 +209,9 @@ def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tup
         raise ModelError(
             f"{owner}: clearance joints must be among {', '.join(revolute)}; got {sorted(unknown)}."
         )
-    for where, options in [("", shared)] + [(f" of joint {name!r}", spec[name] or {}) for name in spec]:
+    for where, options in [("", shared)] + [
+        (f" of joint {name!r}", spec[name] or {}) for name in spec
+    ]:
         bad = set(options) - CLEARANCE_OPTIONS
         if bad:
             raise TypeError(
@@ -190,5 +220,7 @@ def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tup
     if "clearance" not in shared and "geometry" not in shared:
         shared = {**shared, "clearance": 5e-4}
     return tuple(
-        ClearanceJoint.replacing(revolute[name], **{**shared, **(spec[name] or {})}) for name in revolute if name in spec
+        ClearanceJoint.replacing(revolute[name], **{**shared, **(spec[name] or {})})
+        for name in revolute
+        if name in spec
     )

@@ -50,8 +50,12 @@ def central_difference_jvp(fn, x, v, *, eps=None, scale=None):
     """
     if eps is None:
         if scale is None:
-            xmax = max([float(jnp.max(jnp.abs(leaf))) for leaf in jax.tree_util.tree_leaves(x)] + [1.0])
-            vmax = max([float(jnp.max(jnp.abs(leaf))) for leaf in jax.tree_util.tree_leaves(v)] + [1e-300])
+            xmax = max(
+                [float(jnp.max(jnp.abs(leaf))) for leaf in jax.tree_util.tree_leaves(x)] + [1.0]
+            )
+            vmax = max(
+                [float(jnp.max(jnp.abs(leaf))) for leaf in jax.tree_util.tree_leaves(v)] + [1e-300]
+            )
             scale = xmax / vmax
         eps = float(np.sqrt(np.finfo(np.float64).eps)) * scale
     xp = jax.tree_util.tree_map(lambda a, b: a + eps * b, x, v)

@@ -42,7 +42,10 @@ def build(clearance, stiffness, restitution):
 
 def run(clearance, stiffness=HERTZ_K, restitution=0.9, revolutions=1.0):
     return jaxclear.simulate(
-        build(clearance, stiffness, restitution), revolutions * PERIOD, num_points=NUM_POINTS, solver=SOLVER
+        build(clearance, stiffness, restitution),
+        revolutions * PERIOD,
+        num_points=NUM_POINTS,
+        solver=SOLVER,
     )
 
 
@@ -72,7 +75,9 @@ def test_small_clearance_approaches_ideal(limit_runs):
         a = np.asarray(traj.accelerations("slider")[:, 0])
         a_ideal = np.gradient(np.gradient(closed_form_slider(t), t), t)
         inner = slice(5, -5)  # np.gradient is one-sided at the ends
-        accel_errors.append(np.sqrt(np.mean((a - a_ideal)[inner] ** 2)) / np.sqrt(np.mean(a_ideal[inner] ** 2)))
+        accel_errors.append(
+            np.sqrt(np.mean((a - a_ideal)[inner] ** 2)) / np.sqrt(np.mean(a_ideal[inner] ** 2))
+        )
     print("max |x - x_ideal| per case (m):", errors, "relative RMS accel error:", accel_errors)
     assert all(e1 > e2 for e1, e2 in zip(errors, errors[1:])), errors
     assert errors[-1] < LIMIT_POSITION_TOL
@@ -80,7 +85,9 @@ def test_small_clearance_approaches_ideal(limit_runs):
 
 
 # --- energy: frictionless, elastic contact conserves energy up to the drive's work -------------------
-ENERGY_REL_TOL = 2e-3  # of the peak kinetic energy; the trapezoid drive work on a 4000-point grid dominates
+ENERGY_REL_TOL = (
+    2e-3  # of the peak kinetic energy; the trapezoid drive work on a 4000-point grid dominates
+)
 
 
 @pytest.fixture(scope="module")
@@ -109,7 +116,9 @@ def test_elastic_frictionless_energy_balance(elastic_run):
 
 
 # --- finite gradients at e = 0, δ = 0, v_T = 0 --------------------------------------------------------
-@pytest.mark.parametrize("law", [LankaraniNikravesh(), Hybrid()], ids=["lankarani-nikravesh", "hybrid"])
+@pytest.mark.parametrize(
+    "law", [LankaraniNikravesh(), Hybrid()], ids=["lankarani-nikravesh", "hybrid"]
+)
 def test_finite_jacobians_at_singular_points(law):
     mech = slider_crank(clearance_joints="B", contact_law=law, friction_law=LuGre())
     y0 = assemble(mech)
@@ -134,10 +143,16 @@ def test_finite_jacobians_at_singular_points(law):
 
 
 # --- gradient through a simulation against central finite differences -------------------------------
-GRAD_HORIZON = 0.05 * PERIOD  # short: contains the first impact (≈75 µm) but not the chaotic long run
+GRAD_HORIZON = (
+    0.05 * PERIOD
+)  # short: contains the first impact (≈75 µm) but not the chaotic long run
 GRAD_SOLVER = jaxclear.SolverConfig(method="tsit5", rtol=1e-11, atol=1e-14, max_steps=100_000)
-GRAD_FD_STEP = 1e-7  # m: central differences of the adaptive solve agree to 2e-6 for h = 1e-6 .. 1e-8
-GRAD_REL_TOL = 2e-3  # measured 7e-4: the discrete adjoint does not differentiate step-size selection.
+GRAD_FD_STEP = (
+    1e-7  # m: central differences of the adaptive solve agree to 2e-6 for h = 1e-6 .. 1e-8
+)
+GRAD_REL_TOL = (
+    2e-3  # measured 7e-4: the discrete adjoint does not differentiate step-size selection.
+)
 # (A fixed-step solve is no better here: steps longer than the 0.1 µm smoothing widths make the
 # discrete map wiggle on that scale, and its exact gradient was off by 20 %.)
 
@@ -146,7 +161,9 @@ def test_gradient_wrt_clearance_matches_finite_difference():
     ts = jnp.linspace(0.0, GRAD_HORIZON, 8)
 
     def final_eccentricity(clearance):
-        traj = jaxclear.simulate(build(clearance, HERTZ_K, 0.9), GRAD_HORIZON, ts=ts, solver=GRAD_SOLVER)
+        traj = jaxclear.simulate(
+            build(clearance, HERTZ_K, 0.9), GRAD_HORIZON, ts=ts, solver=GRAD_SOLVER
+        )
         return traj.clearance["B"]["ecc_x"][-1]
 
     c0 = 5e-4
@@ -163,14 +180,20 @@ def test_batch_equals_loop(limit_runs):
     clearances = jnp.array([c for c, _ in LIMIT_CASES[:2]])
     stiffness = jnp.array([k * HERTZ_K for _, k in LIMIT_CASES[:2]])
     batch = jaxclear.simulate_batch(
-        lambda p: build(p[0], p[1], 0.5), (clearances, stiffness), PERIOD, num_points=NUM_POINTS, solver=SOLVER
+        lambda p: build(p[0], p[1], 0.5),
+        (clearances, stiffness),
+        PERIOD,
+        num_points=NUM_POINTS,
+        solver=SOLVER,
     )
     assert np.all(np.asarray(batch.succeeded))
     for k in range(2):
         np.testing.assert_allclose(batch.q[k], limit_runs[k].q, rtol=0, atol=1e-9)
 
 
-BACKEND_COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"  # one event per XLA compilation
+BACKEND_COMPILE_EVENT = (
+    "/jax/core/compile/backend_compile_duration"  # one event per XLA compilation
+)
 
 
 def test_no_recompile_for_new_clearance(limit_runs):
@@ -243,7 +266,9 @@ def test_clearance_joint_outputs_and_tree_at():
 
 
 # --- which body carries the pin ----------------------------------------------------------------------
-SWAP_HORIZON = 0.05 * PERIOD  # contains the first impact at B (≈75 µs) and the contact phase after it
+SWAP_HORIZON = (
+    0.05 * PERIOD
+)  # contains the first impact at B (≈75 µs) and the contact phase after it
 SWAP_ECCENTRICITY_TOL = 1e-9  # m: the two descriptions differ only in rounding (clearance 5e-4 m)
 SWAP_FORCE_REL_TOL = 1e-6  # of the peak normal force, same reason
 
@@ -272,9 +297,13 @@ def test_journal_body_choice_mirrors_the_joint():
     default, swapped = runs["slider"].clearance["B"], runs["rod"].clearance["B"]
     assert np.max(np.asarray(default["penetration"])) > 0, "the window must contain an impact"
     for key in ("ecc_x", "ecc_y"):
-        np.testing.assert_allclose(swapped[key], -np.asarray(default[key]), rtol=0, atol=SWAP_ECCENTRICITY_TOL)
+        np.testing.assert_allclose(
+            swapped[key], -np.asarray(default[key]), rtol=0, atol=SWAP_ECCENTRICITY_TOL
+        )
     peak = float(np.max(np.asarray(default["normal_force"])))
-    np.testing.assert_allclose(swapped["normal_force"], default["normal_force"], rtol=0, atol=SWAP_FORCE_REL_TOL * peak)
+    np.testing.assert_allclose(
+        swapped["normal_force"], default["normal_force"], rtol=0, atol=SWAP_FORCE_REL_TOL * peak
+    )
     np.testing.assert_allclose(runs["rod"].q, runs["slider"].q, rtol=0, atol=SWAP_ECCENTRICITY_TOL)
 
 
@@ -316,12 +345,16 @@ def test_journal_body_choice_gives_the_same_generalized_force():
         forces.append(np.asarray(clearance.generalized_force(joint, mech.index, q, qd, state)))
         kins.append(clearance.kinematics(joint, mech.index, q, qd))
     default, swapped = kins
-    np.testing.assert_allclose(swapped.eccentricity_vector, -default.eccentricity_vector, rtol=1e-12)
+    np.testing.assert_allclose(
+        swapped.eccentricity_vector, -default.eccentricity_vector, rtol=1e-12
+    )
     np.testing.assert_allclose(swapped.penetration, default.penetration, rtol=1e-9)
     np.testing.assert_allclose(default.penetration, PENETRATION, rtol=1e-6)
     np.testing.assert_allclose(swapped.penetration_rate, default.penetration_rate, rtol=1e-12)
     assert forces[0][slider + 1] < -1.0  # the wall pushes the slider back down
-    np.testing.assert_allclose(forces[1], forces[0], rtol=1e-9, atol=1e-9 * np.max(np.abs(forces[0])))
+    np.testing.assert_allclose(
+        forces[1], forces[0], rtol=1e-9, atol=1e-9 * np.max(np.abs(forces[0]))
+    )
     assert np.all(forces[0][: 3 * mechs[0].index("crank") + 3] == 0.0) and forces[0][rod + 1] > 1.0
 
 
@@ -336,7 +369,11 @@ def test_clearance_outputs_attribute_and_mapping_access():
     assert out["normal_force"] is out.normal_force
     assert dict(out.items())["ecc_x"] is out.ecc_x and list(out) == list(out.keys())
     frictionless = clearance.outputs(
-        dataclasses.replace(joint, friction_law=NoFriction()), mech.index, y0[:n], y0[n : 2 * n], y0[2 * n : 2 * n + 1]
+        dataclasses.replace(joint, friction_law=NoFriction()),
+        mech.index,
+        y0[:n],
+        y0[n : 2 * n],
+        y0[2 * n : 2 * n + 1],
     )
     assert "friction_state" not in frictionless and frictionless.friction_state is None
     with pytest.raises(KeyError, match="'friction_state' is not an output.*normal_force"):

@@ -21,9 +21,13 @@ def _moving_guide_mechanism():
     time-dependent driver with Φ_tt ≠ 0, relative to another moving body."""
     base = slider_crank()
     joints = tuple(j for j in base.joints if j.name != "slider_guide") + (
-        jaxclear.TranslationalJoint("guide", "slider", (0.01, 0.02), "crank", (0.03, -0.01), axis=(0.6, 0.8), angle=0.3),
+        jaxclear.TranslationalJoint(
+            "guide", "slider", (0.01, 0.02), "crank", (0.03, -0.01), axis=(0.6, 0.8), angle=0.3
+        ),
     )
-    driver = jaxclear.FunctionDriver("crank", function=_driver_angle, parameters=jnp.array([0.3, 7.0, 2.0]), relative_to="rod")
+    driver = jaxclear.FunctionDriver(
+        "crank", function=_driver_angle, parameters=jnp.array([0.3, 7.0, 2.0]), relative_to="rod"
+    )
     return jaxclear.Mechanism(bodies=base.bodies, joints=joints, driver=driver, gravity=(0.0, 0.0))
 
 
@@ -68,7 +72,14 @@ def test_constraint_jacobian_matches_finite_differences(name, seed):
     assert jac.shape == (mech.num_constraints, mech.num_coordinates)
     fd = np.stack(
         [
-            np.asarray(central_difference_jvp(lambda x: constraints(mech, x, t), q, jnp.eye(mech.num_coordinates)[k], scale=1.0))
+            np.asarray(
+                central_difference_jvp(
+                    lambda x: constraints(mech, x, t),
+                    q,
+                    jnp.eye(mech.num_coordinates)[k],
+                    scale=1.0,
+                )
+            )
             for k in range(mech.num_coordinates)
         ],
         axis=1,
@@ -99,7 +110,9 @@ def test_gamma_matches_second_difference_along_path(name, seed):
     print(f"{name} #{seed}: max |γ + d²Φ/ds²| = {err:.3g} (|γ| up to {np.abs(d2).max():.3g})")
     assert err < GAMMA_RTOL * scale
     np.testing.assert_allclose(phi_dot, d1, rtol=0, atol=GAMMA_RTOL * max(1.0, np.abs(d1).max()))
-    np.testing.assert_allclose(np.asarray(constraint_velocity(mech, q, qd, t)), phi_dot, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(
+        np.asarray(constraint_velocity(mech, q, qd, t)), phi_dot, rtol=1e-13, atol=1e-13
+    )
 
 
 def test_time_terms_are_exercised():
@@ -118,7 +131,9 @@ def test_time_terms_are_exercised():
 RPM = 5000.0
 OMEGA = RPM * 2 * np.pi / 60
 PERIOD = 2 * np.pi / OMEGA
-NUM_REVOLUTIONS = 200  # 2.4 s of motion, ~5400 Tsit5 steps: well past the Baumgarte settling time 1/α = 0.2 s
+NUM_REVOLUTIONS = (
+    200  # 2.4 s of motion, ~5400 Tsit5 steps: well past the Baumgarte settling time 1/α = 0.2 s
+)
 DRIFT_BOUND = 1e-4
 """m (or rad). With α = β = 5 1/s the constraint residual settles where Baumgarte's restoring
 acceleration β²Φ balances the integrator's systematic error: measured 3.0e-5 m at rtol 1e-6 (it
@@ -127,7 +142,9 @@ VELOCITY_DRIFT_TOL = 1e-3  # m/s: 4e-5 of the crank-pin speed (26 m/s); measured
 SATURATION_RATIO = 1.05
 """Settled: the largest residual in the last quarter of the run exceeds the one in the third
 quarter by at most 5 % (the Baumgarte transient, time constant 0.2 s = 17 revolutions, is over)."""
-STRICT_DRIFT_TOL = 1e-5  # m: far below any clearance studied (>= 0.1 mm) and below penetrations (~1-30 µm)
+STRICT_DRIFT_TOL = (
+    1e-5  # m: far below any clearance studied (>= 0.1 mm) and below penetrations (~1-30 µm)
+)
 
 
 @pytest.fixture(scope="module")

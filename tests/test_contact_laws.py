@@ -68,9 +68,7 @@ def _evaluate(law, geometry, smoothing, delta, rate, impact, tangential):
 
 
 # One compilation per law structure, reused by every test below.
-_batched = eqx.filter_jit(
-    eqx.filter_vmap(_evaluate, in_axes=(None, None, None, 0, 0, 0, 0))
-)
+_batched = eqx.filter_jit(eqx.filter_vmap(_evaluate, in_axes=(None, None, None, 0, 0, 0, 0)))
 
 
 def _all_finite(tree) -> bool:
@@ -402,7 +400,11 @@ def test_unknown_law_name_lists_valid_names():
         ("hertz", {"stiffness": -1.0}, r"Hertz: stiffness must be > 0, got -1.0"),
         ("gonthier", {"exponent": 0.0}, "exponent"),
         ("pereira", {"fit_length_unit": 0.0}, "fit_length_unit"),
-        ("liu", {"restitution": float("nan")}, r"Liu2007: restitution must be in \(0, 1\], got nan"),
+        (
+            "liu",
+            {"restitution": float("nan")},
+            r"Liu2007: restitution must be in \(0, 1\], got nan",
+        ),
         ("impact", {"max_damping": -1.0}, r"AdamsImpact: max_damping must be >= 0, got -1.0"),
         ("impact", {"max_damping_penetration": 0.0}, "max_damping_penetration"),
         ("elastic-foundation", {"layer_thickness": -0.01}, "layer_thickness"),

@@ -22,7 +22,9 @@ STARVED = jaxclear.SolverConfig(method="tsit5", max_steps=STEP_BUDGET)
 # --------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("mass", [0.0, -0.3])
 def test_non_positive_mass(mass):
-    with pytest.raises(jaxclear.ModelError, match=r"Body 'crank': mass must be > 0, got -?0\.[03] kg"):
+    with pytest.raises(
+        jaxclear.ModelError, match=r"Body 'crank': mass must be > 0, got -?0\.[03] kg"
+    ):
         jaxclear.Body("crank", mass, 1e-4)
 
 
@@ -75,7 +77,9 @@ def test_bad_time_arguments():
 def test_four_bar_that_cannot_close():
     """Ground 1.0 m, links 0.1 + 0.2 + 0.2 m: the loop misses by about half a metre."""
     mech = four_bar(ground_length=1.0, crank_length=0.1, coupler_length=0.2, rocker_length=0.2)
-    pattern = r"cannot be assembled: RevoluteJoint '(O2|A|B|O4)' row \d is off by -?\d\.\d+(e-?\d+)? m"
+    pattern = (
+        r"cannot be assembled: RevoluteJoint '(O2|A|B|O4)' row \d is off by -?\d\.\d+(e-?\d+)? m"
+    )
     with pytest.raises(jaxclear.AssemblyError, match=pattern) as info:
         jaxclear.assemble(mech)
     off = float(str(info.value).split("off by ")[1].split(" ")[0])
@@ -94,9 +98,14 @@ def test_redundant_duplicate_revolute_joint():
     equations than coordinates): Φ_q loses rank and both copies are named."""
     base = slider_crank()
     joints = tuple(j for j in base.joints if j.name != "slider_guide") + (_duplicate_of_o(),)
-    mech = jaxclear.Mechanism(bodies=base.bodies, joints=joints, driver=base.driver, gravity=(0.0, 0.0))
+    mech = jaxclear.Mechanism(
+        bodies=base.bodies, joints=joints, driver=base.driver, gravity=(0.0, 0.0)
+    )
     assert mech.num_constraints == mech.num_coordinates
-    with pytest.raises(jaxclear.AssemblyError, match=r"redundant.*involved: .*'O'.*'O_dup'|redundant.*involved: .*'O_dup'.*'O'"):
+    with pytest.raises(
+        jaxclear.AssemblyError,
+        match=r"redundant.*involved: .*'O'.*'O_dup'|redundant.*involved: .*'O_dup'.*'O'",
+    ):
         jaxclear.assemble(mech)
 
 
@@ -104,7 +113,10 @@ def test_over_constrained_duplicate_revolute_joint():
     """The full slider–crank plus a duplicate of O: more equations (11) than coordinates (9)."""
     base = slider_crank()
     mech = eqx.tree_at(lambda m: m.joints, base, base.joints + (_duplicate_of_o(),))
-    with pytest.raises(jaxclear.AssemblyError, match=r"11 constraint equations for 9 coordinates \(over-constrained\)"):
+    with pytest.raises(
+        jaxclear.AssemblyError,
+        match=r"11 constraint equations for 9 coordinates \(over-constrained\)",
+    ):
         jaxclear.assemble(mech)
 
 
@@ -120,13 +132,17 @@ def test_negative_mass_inside_jit(y0):
     """A mass made negative after construction, with ``y0`` given (so no eager parameter check):
     the compiled solve's own check fires."""
     bad = eqx.tree_at(lambda m: m.bodies[0].mass, slider_crank(), jnp.asarray(-0.3))
-    with pytest.raises(jaxclear.ModelError, match="mass and inertia of every body must be positive"):
+    with pytest.raises(
+        jaxclear.ModelError, match="mass and inertia of every body must be positive"
+    ):
         jaxclear.simulate(bad, T1, num_points=NUM_POINTS, solver="fast", y0=y0)
 
 
 def test_non_finite_initial_state(y0):
     with pytest.raises(jaxclear.ModelError, match="initial state is not finite"):
-        jaxclear.simulate(slider_crank(), T1, num_points=NUM_POINTS, solver="fast", y0=y0.at[0].set(jnp.nan))
+        jaxclear.simulate(
+            slider_crank(), T1, num_points=NUM_POINTS, solver="fast", y0=y0.at[0].set(jnp.nan)
+        )
 
 
 def test_wrong_initial_state_shape(y0):
@@ -140,9 +156,16 @@ def test_batch_member_that_cannot_be_assembled():
     params = {"rod_length": jnp.array([0.12, 0.03]), "crank_mass": jnp.array([0.3, 0.3])}
 
     def build(p):
-        return slider_crank(rpm=RPM, rod_length=p["rod_length"], crank_mass=p["crank_mass"], initial_angle=jnp.pi / 2)
+        return slider_crank(
+            rpm=RPM,
+            rod_length=p["rod_length"],
+            crank_mass=p["crank_mass"],
+            initial_angle=jnp.pi / 2,
+        )
 
-    with pytest.raises(jaxclear.AssemblyError, match=r"mechanism cannot be assembled.*batch members \[1\] of 2"):
+    with pytest.raises(
+        jaxclear.AssemblyError, match=r"mechanism cannot be assembled.*batch members \[1\] of 2"
+    ):
         jaxclear.simulate_batch(build, params, T1, num_points=NUM_POINTS, solver="fast")
 
 
@@ -150,14 +173,19 @@ def test_batch_member_that_cannot_be_assembled():
 # Solver failure
 # --------------------------------------------------------------------------------------------
 def test_simulation_error_gives_time_and_state():
-    with pytest.raises(jaxclear.SimulationError, match=r"simulation failed at t = .* after 20 steps.*raise max_steps \(now 20\)") as info:
+    with pytest.raises(
+        jaxclear.SimulationError,
+        match=r"simulation failed at t = .* after 20 steps.*raise max_steps \(now 20\)",
+    ) as info:
         jaxclear.simulate(slider_crank(rpm=RPM), T1, num_points=11, solver=STARVED)
     err = info.value
     print(f"SimulationError: {err}")
     assert 0.0 < err.t < T1
     assert set(err.state) == {"q", "qd", "internal"}
     q, qd = np.asarray(err.state["q"]), np.asarray(err.state["qd"])
-    assert q.shape == (9,) and qd.shape == (9,) and np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
+    assert (
+        q.shape == (9,) and qd.shape == (9,) and np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
+    )
     # the state is the mechanism's at err.t: the crank angle is ω t there
     assert q[2] == pytest.approx(RPM * 2 * np.pi / 60 * err.t, rel=1e-5)
     # throw=False returns the failed trajectory instead
@@ -172,7 +200,9 @@ def test_batched_failure_is_reported_per_member():
     def build(p):
         return slider_crank(rpm=p["rpm"], crank_mass=p["crank_mass"])
 
-    traj = jaxclear.simulate_batch(build, params, T1, num_points=11, solver=STARVED)  # does not raise
+    traj = jaxclear.simulate_batch(
+        build, params, T1, num_points=11, solver=STARVED
+    )  # does not raise
     stats = traj.stats()
     print(f"batched stats: {stats}")
     assert stats["succeeded"] == [True, False]

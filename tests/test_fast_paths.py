@@ -44,13 +44,18 @@ def _unbatched_rates(mech, t, y):
     for c in mech.clearance_joints:
         total = total + clearance.generalized_force(c, mech.index, q, qd, states[c.name])
     qdd = solve_accelerations(mech, t, q, qd, total)[0]
-    rates = [clearance.state_derivative(c, mech.index, q, qd, qdd, states[c.name]) for c in mech.clearance_joints]
+    rates = [
+        clearance.state_derivative(c, mech.index, q, qd, qdd, states[c.name])
+        for c in mech.clearance_joints
+    ]
     return jnp.concatenate([qd, qdd, *rates])
 
 
 @pytest.mark.parametrize("friction", ["lugre", "modified-coulomb"])
 def test_batched_joints_equal_one_by_one(friction):
-    mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction))
+    mech = slider_crank(
+        clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction)
+    )
     assert [len(g) for g in groups(mech)] == [3]
     for _ in range(3):
         y = _perturbed_state(mech)
@@ -73,12 +78,16 @@ def test_grouping_keeps_different_laws_apart():
     )
     assert sorted(tuple(e.name for e in g) for g in groups(mech)) == [("A",), ("O", "B")]
     mech2 = slider_crank(
-        clearance_joints={"O": dict(contact_law=LankaraniNikravesh()), "A": {}, "B": {}}, clearance=5e-4
+        clearance_joints={"O": dict(contact_law=LankaraniNikravesh()), "A": {}, "B": {}},
+        clearance=5e-4,
     )
     assert sorted(tuple(e.name for e in g) for g in groups(mech2)) == [("A", "B"), ("O",)]
     y = _perturbed_state(mech)
     np.testing.assert_allclose(
-        np.asarray(vector_field(0.0, y, mech)), np.asarray(_unbatched_rates(mech, 0.0, y)), rtol=1e-12, atol=1e-6
+        np.asarray(vector_field(0.0, y, mech)),
+        np.asarray(_unbatched_rates(mech, 0.0, y)),
+        rtol=1e-12,
+        atol=1e-6,
     )
 
 
@@ -87,8 +96,12 @@ def test_gauss_jordan_solve_matches_numpy():
         a = RNG.standard_normal((m, m + 3))
         s = a @ a.T + 1e-3 * np.eye(m)
         b = RNG.standard_normal(m)
-        np.testing.assert_allclose(np.asarray(spd_solve(jnp.asarray(s), jnp.asarray(b))), np.linalg.solve(s, b),
-                                   rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(spd_solve(jnp.asarray(s), jnp.asarray(b))),
+            np.linalg.solve(s, b),
+            rtol=1e-9,
+            atol=1e-12,
+        )
 
 
 @pytest.mark.parametrize("offset", [False, True], ids=["memory", "memory-offset"])
@@ -96,7 +109,9 @@ def test_gauss_jordan_solve_matches_numpy():
 def test_stiff_rates_are_affine_and_diagonal_in_the_internal_states(friction, offset):
     """The contract DiagonalNewton(affine=True) and Lawson–Tsit5's decay rates rely on, for every
     friction law with the memory in both forms."""
-    mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction))
+    mech = slider_crank(
+        clearance_joints="O,A,B", clearance=5e-4, friction_law=friction_law_from_name(friction)
+    )
     mech = mech.with_memory_offset(offset)
     n = 2 * mech.num_coordinates
     for _ in range(2):
@@ -104,7 +119,9 @@ def test_stiff_rates_are_affine_and_diagonal_in_the_internal_states(friction, of
         jac = np.asarray(jax.jacfwd(lambda z: stiff_vector_field(0.0, z, mech))(y))
         assert np.all(jac[:n] == 0.0)  # q, q̇ rows of the stiff part are zero
         block = jac[n:, n:]
-        np.testing.assert_array_equal(block, np.diag(np.diag(block)))  # diagonal in the internal states
+        np.testing.assert_array_equal(
+            block, np.diag(np.diag(block))
+        )  # diagonal in the internal states
         # affine: the Jacobian does not depend on the internal states
         y2 = y.at[n:].set(1e-3 * jnp.asarray(RNG.standard_normal(y.shape[0] - n)))
         jac2 = np.asarray(jax.jacfwd(lambda z: stiff_vector_field(0.0, z, mech))(y2))
@@ -152,11 +169,19 @@ def lugre_runs():
     """B joint with LuGre over the first 0.5 ms (first contact, with a stick phase), IMEX with
     closed-form stage solves (AffineKenCarp) vs Dopri8. Tight tolerances: at rtol 1e-6 both
     explicit and IMEX solvers miss the stick phase (see tests/test_solver_accuracy.py)."""
-    mech = slider_crank(clearance_joints="B", clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
-                        friction_law=LuGre())
+    mech = slider_crank(
+        clearance_joints="B",
+        clearance=5e-4,
+        contact_law=LankaraniNikravesh(restitution=0.9),
+        friction_law=LuGre(),
+    )
     ts = np.linspace(0.0, 0.5e-3, 51)
-    imex = jaxclear.simulate(mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="kencarp5", rtol=1e-9, atol=1e-12))
-    ref = jaxclear.simulate(mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14))
+    imex = jaxclear.simulate(
+        mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="kencarp5", rtol=1e-9, atol=1e-12)
+    )
+    ref = jaxclear.simulate(
+        mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14)
+    )
     return imex, ref
 
 
@@ -164,21 +189,31 @@ def test_imex_matches_explicit_reference(lugre_runs):
     imex, ref = lugre_runs
     assert imex.stats()["succeeded"] and ref.stats()["succeeded"]
     ecc = lambda tr: np.stack([np.asarray(tr.clearance["B"][k]) for k in ("ecc_x", "ecc_y")], -1)  # noqa: E731
-    assert np.max(np.abs(np.asarray(ref.clearance["B"]["normal_force"]))) > 100.0  # contact happened
+    assert (
+        np.max(np.abs(np.asarray(ref.clearance["B"]["normal_force"]))) > 100.0
+    )  # contact happened
     np.testing.assert_allclose(ecc(imex), ecc(ref), atol=1e-9)  # m, of a 5e-4 m clearance
     # z (~5e-7 m) at the saved times comes from KenCarp5's dense output, a polynomial through a
     # step in which z may relax at h·σ0|v|/g ≫ 1: measured max differences 1.4e-10 m (closed-form
     # stage solves) and < 1e-10 m (diffrax's KenCarp5 + DiagonalNewton), from step sequences that
     # differ at rounding level.
-    np.testing.assert_allclose(np.asarray(imex.clearance["B"]["friction_state"]),
-                               np.asarray(ref.clearance["B"]["friction_state"]), atol=Z_DENSE_TOLERANCE)
+    np.testing.assert_allclose(
+        np.asarray(imex.clearance["B"]["friction_state"]),
+        np.asarray(ref.clearance["B"]["friction_state"]),
+        atol=Z_DENSE_TOLERANCE,
+    )
 
 
 def test_auto_solver_choice():
     """``auto``: IMEX when a friction law has internal states (LuGre), Tsit5 otherwise."""
     assert jaxclear.recommended_solver(slider_crank()).method == "tsit5"
-    assert jaxclear.recommended_solver(slider_crank(clearance_joints="B", friction_law=LuGre())).method == "kencarp5"
-    coulomb = slider_crank(clearance_joints="O,A,B", friction_law=friction_law_from_name("modified-coulomb"))
+    assert (
+        jaxclear.recommended_solver(slider_crank(clearance_joints="B", friction_law=LuGre())).method
+        == "kencarp5"
+    )
+    coulomb = slider_crank(
+        clearance_joints="O,A,B", friction_law=friction_law_from_name("modified-coulomb")
+    )
     assert jaxclear.recommended_solver(coulomb).method == "tsit5"
     with pytest.raises(ValueError, match="solver 'auto' needs the mechanism"):
         jaxclear._solver.solver_config("auto")
@@ -194,15 +229,26 @@ def test_default_solver_follows_the_converged_solution_through_the_first_contact
     was up to 0.44 µm: it takes the accuracy the tolerance allows)."""
     from jaxclear.friction import ModifiedCoulomb
 
-    mech = slider_crank(clearance_joints="B", clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
-                        friction_law=ModifiedCoulomb(0.01))
+    mech = slider_crank(
+        clearance_joints="B",
+        clearance=5e-4,
+        contact_law=LankaraniNikravesh(restitution=0.9),
+        friction_law=ModifiedCoulomb(0.01),
+    )
     ts = np.linspace(0.0, 1.5e-3, 61)
-    config = solver if solver == "auto" else jaxclear.SolverConfig(method=solver, rtol=1e-7, atol=1e-10)
+    config = (
+        solver if solver == "auto" else jaxclear.SolverConfig(method=solver, rtol=1e-7, atol=1e-10)
+    )
     fast = jaxclear.simulate(mech, 1.5e-3, ts=ts, solver=config)
-    ref = jaxclear.simulate(mech, 1.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14))
+    ref = jaxclear.simulate(
+        mech, 1.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14)
+    )
     b, r = fast.clearance["B"], ref.clearance["B"]
     assert float(np.max(np.asarray(r["normal_force"]))) > 1e3  # impacts happened
-    dist = np.hypot(np.asarray(b["ecc_x"]) - np.asarray(r["ecc_x"]), np.asarray(b["ecc_y"]) - np.asarray(r["ecc_y"]))
+    dist = np.hypot(
+        np.asarray(b["ecc_x"]) - np.asarray(r["ecc_x"]),
+        np.asarray(b["ecc_y"]) - np.asarray(r["ecc_y"]),
+    )
     print(f"{solver}: max orbit distance from Dopri8 over 1.5 ms {np.max(dist) * 1e6:.4f} µm")
     assert np.max(dist) < 2e-7
 
@@ -215,13 +261,19 @@ def test_gradient_through_the_imex_solver():
     ts = np.linspace(0.0, 2.5e-4, 11)
 
     def build(c):
-        return slider_crank(clearance_joints="B", clearance=c, contact_law=LankaraniNikravesh(restitution=0.9),
-                            friction_law=LuGre())
+        return slider_crank(
+            clearance_joints="B",
+            clearance=c,
+            contact_law=LankaraniNikravesh(restitution=0.9),
+            friction_law=LuGre(),
+        )
 
     y0 = jaxclear.assemble(build(5e-4))
 
     def ecc(c, solver):
-        return jaxclear.simulate(build(c), 2.5e-4, ts=ts, y0=y0, solver=solver).clearance["B"]["ecc_x"][-1]
+        return jaxclear.simulate(build(c), 2.5e-4, ts=ts, y0=y0, solver=solver).clearance["B"][
+            "ecc_x"
+        ][-1]
 
     grad = float(jax.grad(lambda c: ecc(c, "imex"))(5e-4))
     h = 1e-8

@@ -26,7 +26,16 @@ def slider_on_spring(stiffness, damping, force=0.0, mass=2.0):
         bodies=(jaxclear.Body("block", mass, 0.01, position=(0.1, 0.0, 0.0)),),
         joints=(jaxclear.TranslationalJoint("guide", "block", (0.0, 0.0), "ground", (0.0, 0.0)),),
         forces=(
-            jaxclear.SpringDamper("spring", "ground", (0.0, 0.0), "block", (0.0, 0.0), stiffness, damping, free_length=0.05),
+            jaxclear.SpringDamper(
+                "spring",
+                "ground",
+                (0.0, 0.0),
+                "block",
+                (0.0, 0.0),
+                stiffness,
+                damping,
+                free_length=0.05,
+            ),
             jaxclear.AppliedForce("push", "block", (0.0, 0.0), (force, 0.0)),
         ),
         gravity=(0.0, -9.81),
@@ -85,29 +94,39 @@ def test_applied_torque_holds_pendulum_level():
 def test_function_driver_prescribes_angle_and_relative_driver():
     amplitude, omega = 0.3, 20.0
     mech = pendulum()
-    driver = jaxclear.FunctionDriver("bar", lambda t, p: p[0] * jnp.sin(p[1] * t), jnp.array([amplitude, omega]))
+    driver = jaxclear.FunctionDriver(
+        "bar", lambda t, p: p[0] * jnp.sin(p[1] * t), jnp.array([amplitude, omega])
+    )
     mech = jaxclear.Mechanism(bodies=mech.bodies, joints=mech.joints, driver=driver)
     traj = jaxclear.simulate(mech, 1.0, num_points=NUM_POINTS, solver=SOLVER)
     t = np.asarray(traj.t)
-    np.testing.assert_allclose(np.asarray(traj.coordinates("bar")[:, 2]), amplitude * np.sin(omega * t), atol=1e-9)
+    np.testing.assert_allclose(
+        np.asarray(traj.coordinates("bar")[:, 2]), amplitude * np.sin(omega * t), atol=1e-9
+    )
     # torque = J_O φ̈ + m g (L/2) cos φ  (J_O about the pivot)
     j_o = 1.5 * 0.4**2 / 3
     phi = amplitude * np.sin(omega * t)
     phidd = -amplitude * omega**2 * np.sin(omega * t)
     expected = j_o * phidd + 1.5 * 9.81 * 0.2 * np.cos(phi)
-    np.testing.assert_allclose(np.asarray(traj.input_torque), expected, rtol=0, atol=1e-6 * np.max(np.abs(expected)))
+    np.testing.assert_allclose(
+        np.asarray(traj.input_torque), expected, rtol=0, atol=1e-6 * np.max(np.abs(expected))
+    )
 
 
 def test_four_bar_with_clearance_stays_near_ideal():
     ideal = jaxclear.simulate(four_bar(), 1.0, num_points=NUM_POINTS, solver="fast")
     law = LankaraniNikravesh()
-    loose = four_bar(clearance_joints="B", clearance=1e-4, contact_law=law, friction_law=NoFriction())
+    loose = four_bar(
+        clearance_joints="B", clearance=1e-4, contact_law=law, friction_law=NoFriction()
+    )
     traj = jaxclear.simulate(loose, 1.0, num_points=NUM_POINTS, solver="fast")
     out = traj.clearance["B"]
     ecc = np.hypot(np.asarray(out["ecc_x"]), np.asarray(out["ecc_y"]))
     assert ecc.max() < 1e-4 + 20e-6  # inside the clearance circle up to a small penetration
     rocker = np.asarray(traj.coordinates("rocker")[:, 2])
-    assert np.max(np.abs(rocker - np.asarray(ideal.coordinates("rocker")[:, 2]))) < 5e-3  # rad, c / link ≈ 4e-4
+    assert (
+        np.max(np.abs(rocker - np.asarray(ideal.coordinates("rocker")[:, 2]))) < 5e-3
+    )  # rad, c / link ≈ 4e-4
 
 
 @pytest.mark.parametrize("bad", [dict(stiffness=-1.0), dict(damping=-0.1), dict(free_length=-0.2)])
@@ -124,13 +143,20 @@ def _block():
 def test_mechanism_checks_element_bodies_and_kinds():
     spring = jaxclear.SpringDamper("s", "ground", (0.0, 0.0), "blok", (0.0, 0.0), stiffness=1.0)
     assert spring.bodies == ("ground", "blok")
-    with pytest.raises(jaxclear.ModelError, match=r"SpringDamper 's': body 'blok' is not a body.*'block'"):
+    with pytest.raises(
+        jaxclear.ModelError, match=r"SpringDamper 's': body 'blok' is not a body.*'block'"
+    ):
         jaxclear.Mechanism(bodies=(_block(),), forces=(spring,))
-    pin = jaxclear.ClearanceJoint.replacing(jaxclear.RevoluteJoint("P", "ground", (0.1, 0.0), "block", (0.0, 0.0)))
+    pin = jaxclear.ClearanceJoint.replacing(
+        jaxclear.RevoluteJoint("P", "ground", (0.1, 0.0), "block", (0.0, 0.0))
+    )
     with pytest.raises(TypeError):  # the annotation, when jaxtyping's runtime checks are on
         jaxclear.Mechanism(bodies=(_block(),), forces=(pin,))
     with without_runtime_type_checks():  # the message users get (no runtime checker)
-        with pytest.raises(TypeError, match="forces holds a ClearanceJoint.*clearance joints go in clearance_joints"):
+        with pytest.raises(
+            TypeError,
+            match="forces holds a ClearanceJoint.*clearance joints go in clearance_joints",
+        ):
             jaxclear.Mechanism(bodies=(_block(),), forces=(pin,))
         with pytest.raises(TypeError, match="clearance_joints holds a SpringDamper"):
             jaxclear.Mechanism(bodies=(_block(),), clearance_joints=(spring,))

@@ -54,12 +54,17 @@ def closed_form_positions(theta):
     psi = np.where(left[0], roots[0], roots[1])
     bx, by = D + C * np.cos(psi), C * np.sin(psi)
     coupler = np.arctan2(by - ay, bx - ax)
-    return np.stack([ax / 2, ay / 2, th, (ax + bx) / 2, (ay + by) / 2, coupler, (D + bx) / 2, by / 2, psi], axis=-1)
+    return np.stack(
+        [ax / 2, ay / 2, th, (ax + bx) / 2, (ay + by) / 2, coupler, (D + bx) / 2, by / 2, psi],
+        axis=-1,
+    )
 
 
 def mechanical_energy(q, qd):
     """Kinetic plus gravitational potential energy, J (gravity 9.81 m/s² along −y)."""
-    m = np.array([MASS[0], MASS[0], INERTIA[0], MASS[1], MASS[1], INERTIA[1], MASS[2], MASS[2], INERTIA[2]])
+    m = np.array(
+        [MASS[0], MASS[0], INERTIA[0], MASS[1], MASS[1], INERTIA[1], MASS[2], MASS[2], INERTIA[2]]
+    )
     kinetic = 0.5 * np.sum(m * qd**2, axis=-1)
     potential = G * (MASS[0] * q[:, 1] + MASS[1] * q[:, 4] + MASS[2] * q[:, 7])
     return kinetic, potential
@@ -121,7 +126,9 @@ def test_drive_work_equals_energy_change(driven):
     delta = energy - energy[0]
     err = np.max(np.abs(work - delta))
     scale = np.max(np.abs(delta))
-    print(f"drive work vs Δ(T+V): max error {err:.3g} J over a swing of {scale:.4g} J (relative {err / scale:.3g})")
+    print(
+        f"drive work vs Δ(T+V): max error {err:.3g} J over a swing of {scale:.4g} J (relative {err / scale:.3g})"
+    )
     assert scale > 0.1  # the check is not vacuous
     assert err < ENERGY_BALANCE_RTOL * scale
 
@@ -139,7 +146,9 @@ def test_free_four_bar_conserves_energy(free):
     energy = kinetic + potential
     drift = np.max(np.abs(energy - energy[0]))
     scale = np.max(kinetic)
-    print(f"free four-bar: max |E - E0| = {drift:.3g} J, max kinetic energy {scale:.4g} J (relative {drift / scale:.3g})")
+    print(
+        f"free four-bar: max |E - E0| = {drift:.3g} J, max kinetic energy {scale:.4g} J (relative {drift / scale:.3g})"
+    )
     assert np.abs(qd[0]).max() < 1e-12  # released from rest
     assert scale > 0.1  # it moves
     assert drift < ENERGY_DRIFT_RTOL * scale

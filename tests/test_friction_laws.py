@@ -64,9 +64,7 @@ def _max_coefficient(law) -> float:
 @pytest.fixture(scope="module", params=NAMES)
 def law_and_steady(request):
     law = friction_law_from_name(request.param)
-    forces, rates = _steady_forces(
-        law, jnp.asarray(SLIP_VELOCITIES), FN, SMOOTHING
-    )
+    forces, rates = _steady_forces(law, jnp.asarray(SLIP_VELOCITIES), FN, SMOOTHING)
     return request.param, law, np.asarray(forces), np.asarray(rates)
 
 
@@ -152,9 +150,7 @@ def test_modified_coulomb_dynamic_correction_profile():
         [np.linspace(0.0, v0, 11), np.linspace(v0, v1, 91), [v1 + width, 2 * v1, 0.1, 3.0]]
     )
     for sign in (1.0, -1.0):
-        forces, _ = _steady_forces(
-            law, jnp.asarray(sign * speeds), FN, SMOOTHING
-        )
+        forces, _ = _steady_forces(law, jnp.asarray(sign * speeds), FN, SMOOTHING)
         c_d = -np.asarray(forces) / (0.12 * NORMAL_FORCE * sign)
         assert np.all(c_d[speeds <= v0] == 0.0)
         np.testing.assert_allclose(c_d[speeds >= v1 + width], 1.0, rtol=ALGEBRA_RTOL)
@@ -211,9 +207,7 @@ def test_lugre_relaxes_to_steady_state():
     z_ss = float(law.steady_state(v, SMOOTHING)[0])
     rate = float(law.state_derivative(v, FN, jnp.asarray([0.0]), SMOOTHING)[0])
     np.testing.assert_allclose(rate, 0.01, rtol=ALGEBRA_RTOL)  # from rest, ż = v
-    slope = (
-        float(law.state_derivative(v, FN, jnp.asarray([2 * z_ss]), SMOOTHING)[0]) / z_ss
-    )
+    slope = float(law.state_derivative(v, FN, jnp.asarray([2 * z_ss]), SMOOTHING)[0]) / z_ss
     speed = math.sqrt(0.01**2 + float(SMOOTHING.velocity_width) ** 2)
     expected = -1e5 * speed / _stribeck(0.01, law)
     np.testing.assert_allclose(slope, expected, rtol=1e-9)
@@ -227,14 +221,22 @@ def test_unknown_friction_name_lists_valid_names():
 @pytest.mark.parametrize(
     "name, params, match",
     [
-        ("coulomb", {"friction_coefficient": -0.1}, r"Coulomb: friction_coefficient must be >= 0, got -0.1"),
+        (
+            "coulomb",
+            {"friction_coefficient": -0.1},
+            r"Coulomb: friction_coefficient must be >= 0, got -0.1",
+        ),
         ("coulomb", {"velocity_tolerance": 0.0}, "velocity_tolerance"),
         ("modified-coulomb", {"lower_velocity": 1e-3, "upper_velocity": 1e-4}, "upper_velocity"),
         ("modified-coulomb", {"lower_velocity": -1e-4}, "lower_velocity"),
         ("lugre", {"bristle_stiffness": 0.0}, r"LuGre: bristle_stiffness must be > 0, got 0.0"),
         ("lugre", {"stribeck_velocity": -1e-3}, "stribeck_velocity"),
         ("lugre", {"kinetic_friction": 0.0}, "kinetic_friction"),
-        ("lugre", {"bristle_damping": float("nan")}, "LuGre: bristle_damping must be finite, got nan"),
+        (
+            "lugre",
+            {"bristle_damping": float("nan")},
+            "LuGre: bristle_damping must be finite, got nan",
+        ),
     ],
 )
 def test_bad_parameters_raise(name, params, match):

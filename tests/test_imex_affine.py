@@ -24,8 +24,12 @@ ROUNDING = 1e-12  # absolute, on states of order 1 (m, rad, m/s up to ~30)
 
 @pytest.fixture(scope="module")
 def lugre_state():
-    mech = slider_crank(clearance_joints="O,A,B", clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
-                        friction_law=LuGre())
+    mech = slider_crank(
+        clearance_joints="O,A,B",
+        clearance=5e-4,
+        contact_law=LankaraniNikravesh(restitution=0.9),
+        friction_law=LuGre(),
+    )
     y0 = jaxclear.assemble(mech)
     rng = np.random.default_rng(3)
     n2 = 2 * mech.num_coordinates
@@ -36,8 +40,17 @@ def lugre_state():
 
 
 def one_step(term, solver, y, mech, h):
-    sol = diffrax.diffeqsolve(term, solver, 0.0, h, h, y, args=mech, stepsize_controller=diffrax.ConstantStepSize(),
-                              saveat=diffrax.SaveAt(ts=jnp.array([h / 3, h])))
+    sol = diffrax.diffeqsolve(
+        term,
+        solver,
+        0.0,
+        h,
+        h,
+        y,
+        args=mech,
+        stepsize_controller=diffrax.ConstantStepSize(),
+        saveat=diffrax.SaveAt(ts=jnp.array([h / 3, h])),
+    )
     return np.asarray(sol.ys)
 
 

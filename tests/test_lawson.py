@@ -25,8 +25,16 @@ def decay_rate(t, y, args):
 
 def solve(term, solver, y0, args, t1, ts, rtol=1e-8, max_steps=100_000):
     return diffrax.diffeqsolve(
-        term, solver, 0.0, t1, None, y0, args=args, saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=rtol * 1e-3), max_steps=max_steps,
+        term,
+        solver,
+        0.0,
+        t1,
+        None,
+        y0,
+        args=args,
+        saveat=diffrax.SaveAt(ts=ts),
+        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=rtol * 1e-3),
+        max_steps=max_steps,
     )
 
 
@@ -50,7 +58,9 @@ def test_decay_row_is_taken_exactly_at_any_step():
     ts = jnp.array([0.0, 1e-7, 5e-7, 2e-6, 1.0, 10.0])
     sol = solve(term, LawsonTsit5(decay_rate, (2,)), y0, jnp.asarray(RATE), 10.0, ts)
     assert int(sol.stats["num_steps"]) < 200
-    np.testing.assert_allclose(sol.ys[:, 2], np.exp(-RATE * np.asarray(ts)), rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(
+        sol.ys[:, 2], np.exp(-RATE * np.asarray(ts)), rtol=1e-12, atol=1e-300
+    )
     np.testing.assert_allclose(sol.ys[:, 0], np.cos(np.asarray(ts)), atol=1e-7)
 
 
@@ -69,9 +79,18 @@ def test_forcing_on_a_decay_row_converges_with_the_tolerance():
     ts = jnp.linspace(0.0, 3.0, 31)
     errors = []
     for rtol in (1e-5, 1e-8):
-        sol = solve(diffrax.ODETerm(forced), LawsonTsit5(decay_rate, (0,)), jnp.array([0.0]), jnp.asarray(lam), 3.0, ts,
-                    rtol=rtol)
-        errors.append(float(np.max(np.abs(np.asarray(sol.ys[:, 0]) - forced_exact(np.asarray(ts), lam)))))
+        sol = solve(
+            diffrax.ODETerm(forced),
+            LawsonTsit5(decay_rate, (0,)),
+            jnp.array([0.0]),
+            jnp.asarray(lam),
+            3.0,
+            ts,
+            rtol=rtol,
+        )
+        errors.append(
+            float(np.max(np.abs(np.asarray(sol.ys[:, 0]) - forced_exact(np.asarray(ts), lam))))
+        )
     assert errors[0] < 1e-4
     assert errors[1] < 1e-2 * errors[0]
 
@@ -115,8 +134,12 @@ def one_joint():
     from jaxclear.friction import ModifiedCoulomb
     from jaxclear.mechanisms import slider_crank
 
-    return jaxclear, slider_crank(clearance_joints="B", clearance=5e-4, contact_law=LankaraniNikravesh(restitution=0.9),
-                                  friction_law=ModifiedCoulomb(0.01))
+    return jaxclear, slider_crank(
+        clearance_joints="B",
+        clearance=5e-4,
+        contact_law=LankaraniNikravesh(restitution=0.9),
+        friction_law=ModifiedCoulomb(0.01),
+    )
 
 
 def test_memory_forms_give_the_same_trajectory(one_joint):
@@ -130,10 +153,16 @@ def test_memory_forms_give_the_same_trajectory(one_joint):
     tight = jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14, max_steps=1_000_000)
     absolute = jaxclear.simulate(mech, 6e-4, ts=ts, solver=tight)
     offset = jaxclear.simulate(mech.with_memory_offset(), 6e-4, ts=ts, solver=tight)
-    assert float(np.max(np.asarray(absolute.clearance["B"]["normal_force"]))) > 1e3  # impacts happened
+    assert (
+        float(np.max(np.asarray(absolute.clearance["B"]["normal_force"]))) > 1e3
+    )  # impacts happened
     for key, atol in (("ecc_x", 1e-10), ("ecc_y", 1e-10), ("impact_velocity", 1e-6)):
-        np.testing.assert_allclose(np.asarray(offset.clearance["B"][key]), np.asarray(absolute.clearance["B"][key]),
-                                   rtol=0, atol=atol)
+        np.testing.assert_allclose(
+            np.asarray(offset.clearance["B"][key]),
+            np.asarray(absolute.clearance["B"][key]),
+            rtol=0,
+            atol=atol,
+        )
     y = absolute.y_final
     u = y - memory_offset_shift(mech, y)
     assert float(u[-1]) != float(y[-1])
@@ -144,10 +173,16 @@ def test_lawson_run_returns_the_absolute_memory(one_joint):
     """Lawson–Tsit5 solves the offset form inside; the trajectory holds m (= δ̇ in free flight)."""
     jaxclear, mech = one_joint
     ts = np.linspace(0.0, 1e-4, 11)  # free flight from the centred start
-    tr = jaxclear.simulate(mech, 1e-4, ts=ts, solver=jaxclear.SolverConfig(method="lawson-tsit5", rtol=1e-8))
+    tr = jaxclear.simulate(
+        mech, 1e-4, ts=ts, solver=jaxclear.SolverConfig(method="lawson-tsit5", rtol=1e-8)
+    )
     b = tr.clearance["B"]
-    np.testing.assert_allclose(np.asarray(b["impact_velocity"]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9)
-    np.testing.assert_allclose(np.asarray(tr.internal_state[:, 0]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        np.asarray(b["impact_velocity"]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        np.asarray(tr.internal_state[:, 0]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9
+    )
 
 
 def test_configuration_errors_name_the_fix():

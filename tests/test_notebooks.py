@@ -15,7 +15,12 @@ def _run(path, quick):
     nb = nbformat.read(path, as_version=4)
     os.environ["JAXCLEAR_QUICK"] = "1" if quick else "0"
     try:
-        NotebookClient(nb, timeout=TIMEOUT, kernel_name="python3", resources={"metadata": {"path": str(path.parent)}}).execute()
+        NotebookClient(
+            nb,
+            timeout=TIMEOUT,
+            kernel_name="python3",
+            resources={"metadata": {"path": str(path.parent)}},
+        ).execute()
     finally:
         os.environ.pop("JAXCLEAR_QUICK", None)
     return nb

@@ -49,7 +49,11 @@ def run(width, rtol):
         friction_law=NoFriction(),
         smoothing=Smoothing(penetration_width=width, memory_width=width),
     )
-    ts = np.linspace(0.0, HORIZON_REVOLUTIONS * PERIOD, int(round(HORIZON_REVOLUTIONS * POINTS_PER_REVOLUTION)) + 1)
+    ts = np.linspace(
+        0.0,
+        HORIZON_REVOLUTIONS * PERIOD,
+        int(round(HORIZON_REVOLUTIONS * POINTS_PER_REVOLUTION)) + 1,
+    )
     config = jaxclear.SolverConfig(method="dopri8", rtol=rtol, atol=rtol * 1e-3, max_steps=200_000)
     return jaxclear.simulate(mech, float(ts[-1]), ts=ts, solver=config)
 
@@ -73,7 +77,16 @@ def test_smoothing_widths_converge_to_sharp_reference(sharp):
 
 def orbit_distance(a, b):
     """Max distance (m) between the B journal-centre orbits of two runs."""
-    return float(np.max(np.hypot(*(np.asarray(a.clearance["B"][k]) - np.asarray(b.clearance["B"][k]) for k in ("ecc_x", "ecc_y")))))
+    return float(
+        np.max(
+            np.hypot(
+                *(
+                    np.asarray(a.clearance["B"][k]) - np.asarray(b.clearance["B"][k])
+                    for k in ("ecc_x", "ecc_y")
+                )
+            )
+        )
+    )
 
 
 def test_tolerance_convergence(sharp):
@@ -94,4 +107,6 @@ def test_slider_and_torque_agree_with_reference(sharp):
     assert np.max(np.abs(torque - sharp["crank_torque"])) < 1e-3 * torque_scale
     force = np.asarray(traj.clearance["B"]["normal_force"])
     assert np.max(np.abs(force - sharp["B_normal_force"])) < 1e-3 * np.max(sharp["B_normal_force"])
-    assert jnp.all(traj.constraint_violation < 1e-8)  # Baumgarte (α = β = 5) lets Φ drift ~nm per ms
+    assert jnp.all(
+        traj.constraint_violation < 1e-8
+    )  # Baumgarte (α = β = 5) lets Φ drift ~nm per ms

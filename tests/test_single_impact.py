@@ -81,7 +81,12 @@ def _scipy_impact(hysteresis):
     separation.terminal = True
     separation.direction = -1.0
     solution = solve_ivp(
-        rhs, (0.0, T_END), [0.0, SPEED], method="DOP853", rtol=1e-12, atol=1e-16,
+        rhs,
+        (0.0, T_END),
+        [0.0, SPEED],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-16,
         events=separation,
     )
     return -solution.y_events[0][0][1] / SPEED, solution.t_events[0][0]

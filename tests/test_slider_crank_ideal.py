@@ -64,18 +64,36 @@ def closed_form(theta):
     dpsi = -R * c / S
     ddpsi = R * s / S - R**3 * s * c**2 / S**3
     zero = np.zeros_like(th)
-    q = np.stack([R * c / 2, R * s / 2, th, (R * c + xb) / 2, R * s / 2, psi, xb, zero, zero], axis=-1)
-    qd = w * np.stack(
-        [-R * s / 2, R * c / 2, np.ones_like(th), (-R * s + dxb) / 2, R * c / 2, dpsi, dxb, zero, zero], axis=-1
+    q = np.stack(
+        [R * c / 2, R * s / 2, th, (R * c + xb) / 2, R * s / 2, psi, xb, zero, zero], axis=-1
     )
-    qdd = w**2 * np.stack([-R * c / 2, -R * s / 2, zero, (-R * c + ddxb) / 2, -R * s / 2, ddpsi, ddxb, zero, zero], axis=-1)
+    qd = w * np.stack(
+        [
+            -R * s / 2,
+            R * c / 2,
+            np.ones_like(th),
+            (-R * s + dxb) / 2,
+            R * c / 2,
+            dpsi,
+            dxb,
+            zero,
+            zero,
+        ],
+        axis=-1,
+    )
+    qdd = w**2 * np.stack(
+        [-R * c / 2, -R * s / 2, zero, (-R * c + ddxb) / 2, -R * s / 2, ddpsi, ddxb, zero, zero],
+        axis=-1,
+    )
     return q, qd, qdd
 
 
 def kinetic_energy(theta):
     """T(θ) = ½ Σ (m v² + J φ̇²) of the three bodies from the closed-form velocities, J."""
     _, qd, _ = closed_form(theta)
-    m = np.array([MASS[0], MASS[0], INERTIA[0], MASS[1], MASS[1], INERTIA[1], MASS[2], MASS[2], INERTIA[2]])
+    m = np.array(
+        [MASS[0], MASS[0], INERTIA[0], MASS[1], MASS[1], INERTIA[1], MASS[2], MASS[2], INERTIA[2]]
+    )
     return 0.5 * np.sum(m * qd**2, axis=-1)
 
 
@@ -113,13 +131,17 @@ def newton_euler(theta):
     mat[:, 2, 0:2] = cross_coeffs(-r1)
     mat[:, 2, 2:4] = -cross_coeffs(a - r1)
     mat[:, 2, 7] = 1
-    rhs[:, 0:3] = np.stack([MASS[0] * qdd[:, 0], MASS[0] * qdd[:, 1], INERTIA[0] * qdd[:, 2]], axis=-1)
+    rhs[:, 0:3] = np.stack(
+        [MASS[0] * qdd[:, 0], MASS[0] * qdd[:, 1], INERTIA[0] * qdd[:, 2]], axis=-1
+    )
     # rod: m2 a2 = F_A - F_B ; J2 α2 = (A - r2) × F_A - (B - r2) × F_B
     mat[:, 3, [2, 4]] = [1, -1]
     mat[:, 4, [3, 5]] = [1, -1]
     mat[:, 5, 2:4] = cross_coeffs(a - r2)
     mat[:, 5, 4:6] = -cross_coeffs(b - r2)
-    rhs[:, 3:6] = np.stack([MASS[1] * qdd[:, 3], MASS[1] * qdd[:, 4], INERTIA[1] * qdd[:, 5]], axis=-1)
+    rhs[:, 3:6] = np.stack(
+        [MASS[1] * qdd[:, 3], MASS[1] * qdd[:, 4], INERTIA[1] * qdd[:, 5]], axis=-1
+    )
     # slider: m3 a3 = F_B + (0, N)  (its moment equation holds the guide's reaction moment, unused)
     mat[:, 6, 4] = 1
     mat[:, 7, [5, 6]] = [1, 1]
@@ -143,7 +165,9 @@ def reference(traj):
     theta = OMEGA * np.asarray(traj.t)
     q, qd, qdd = closed_form(theta)
     ne = newton_euler(theta)
-    return dict(theta=theta, q=q, qd=qd, qdd=qdd, tau=energy_torque(theta), tau_ne=ne.pop("tau"), **ne)
+    return dict(
+        theta=theta, q=q, qd=qd, qdd=qdd, tau=energy_torque(theta), tau_ne=ne.pop("tau"), **ne
+    )
 
 
 def _wrap(a):
@@ -163,7 +187,9 @@ def test_positions_match_closed_form(traj, reference):
     pos_err = np.max(np.abs(q[:, lengths] - ref[:, lengths]))
     ang_err = np.max(np.abs(_wrap(q[:, angles] - ref[:, angles])))
     xb_err = np.max(np.abs(q[:, 6] - ref[:, 6]))
-    print(f"max |x_B - closed form| = {xb_err:.3g} m; all CM coordinates {pos_err:.3g} m; angles {ang_err:.3g} rad")
+    print(
+        f"max |x_B - closed form| = {xb_err:.3g} m; all CM coordinates {pos_err:.3g} m; angles {ang_err:.3g} rad"
+    )
     assert xb_err < POSITION_TOL
     assert pos_err < POSITION_TOL
     assert ang_err < ANGLE_TOL
@@ -295,7 +321,9 @@ def test_model_table_from_closed_form():
     for name, (ref, half_unit) in MODEL_TABLE.items():
         assert abs(found[name] - ref) <= half_unit + 1e-6 * abs(ref), (name, found[name])
     # the two independent torques (energy balance, Newton–Euler) agree
-    np.testing.assert_allclose(energy_torque(theta), ne["tau"], rtol=0, atol=1e-6 * np.abs(ne["tau"]).max())
+    np.testing.assert_allclose(
+        energy_torque(theta), ne["tau"], rtol=0, atol=1e-6 * np.abs(ne["tau"]).max()
+    )
 
 
 def test_constraints_hold(traj):

@@ -79,11 +79,31 @@ class Pereira2011(AbstractLNDampedElasticLaw):
 
     def __check_init__(self):
         check_restitution(type(self).__name__, self.restitution)
-        check_positive(type(self).__name__, "coefficient_a", self.coefficient_a, fix="use 0.965 (internal contact)")
-        check_positive(type(self).__name__, "coefficient_b", self.coefficient_b, fix="use 0.0965 (internal contact)")
+        check_positive(
+            type(self).__name__,
+            "coefficient_a",
+            self.coefficient_a,
+            fix="use 0.965 (internal contact)",
+        )
+        check_positive(
+            type(self).__name__,
+            "coefficient_b",
+            self.coefficient_b,
+            fix="use 0.0965 (internal contact)",
+        )
         if self.exponent is not None:
-            check_positive(type(self).__name__, "exponent", self.exponent, fix="pass n > 0, or None for the fit")
-        check_positive(type(self).__name__, "fit_length_unit", self.fit_length_unit, fix="use 1e-3 (mm, as published)")
+            check_positive(
+                type(self).__name__,
+                "exponent",
+                self.exponent,
+                fix="pass n > 0, or None for the fit",
+            )
+        check_positive(
+            type(self).__name__,
+            "fit_length_unit",
+            self.fit_length_unit,
+            fix="use 1e-3 (mm, as published)",
+        )
 
     def effective_exponent(self, geometry: ContactGeometry) -> Float[Array, ""]:
         """The exponent n used for this joint (the fit unless given), dimensionless."""

@@ -150,8 +150,15 @@ class AbstractDampedContactLaw(AbstractContactLaw):
 
     def __check_init__(self):
         if self.stiffness is not None:
-            check_positive(type(self).__name__, "stiffness", self.stiffness, fix="pass K in N/m^n, or None for Hertz K")
-        check_positive(type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)")
+            check_positive(
+                type(self).__name__,
+                "stiffness",
+                self.stiffness,
+                fix="pass K in N/m^n, or None for Hertz K",
+            )
+        check_positive(
+            type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)"
+        )
         check_restitution(type(self).__name__, self.restitution)
 
     @abc.abstractmethod

@@ -117,9 +117,19 @@ def foundation_coefficient(
 def _check_foundation(law) -> None:
     check_restitution(type(law).__name__, law.restitution)
     if law.layer_thickness is not None:
-        check_positive(type(law).__name__, "layer_thickness", law.layer_thickness, fix="pass L in m, or None to match Hertz K")
+        check_positive(
+            type(law).__name__,
+            "layer_thickness",
+            law.layer_thickness,
+            fix="pass L in m, or None to match Hertz K",
+        )
     if law.foundation_modulus is not None:
-        check_positive(type(law).__name__, "foundation_modulus", law.foundation_modulus, fix="pass K_EF in Pa, or None for bearing's")
+        check_positive(
+            type(law).__name__,
+            "foundation_modulus",
+            law.foundation_modulus,
+            fix="pass K_EF in Pa, or None for bearing's",
+        )
 
 
 class ElasticFoundation(AbstractLNDampedElasticLaw):
@@ -137,12 +147,8 @@ class ElasticFoundation(AbstractLNDampedElasticLaw):
     """
 
     restitution: Float[Array, ""] = eqx.field(converter=_array, default=0.9)
-    layer_thickness: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
-    foundation_modulus: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
+    layer_thickness: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
+    foundation_modulus: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
 
     def __check_init__(self):
         _check_foundation(self)
@@ -157,7 +163,6 @@ class ElasticFoundation(AbstractLNDampedElasticLaw):
         # e θ_c − c sin θ_c = δ θ_c + c (θ_c − sin θ_c), both terms >= 0.
         shape = delta * theta + c * _angle_minus_sine(theta)
         return coefficient * shape
-
 
 
 class ElasticFoundationDiscrete(AbstractLNDampedElasticLaw):
@@ -178,12 +183,8 @@ class ElasticFoundationDiscrete(AbstractLNDampedElasticLaw):
 
     restitution: Float[Array, ""] = eqx.field(converter=_array, default=0.9)
     num_elements: int = eqx.field(static=True, default=10)
-    layer_thickness: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
-    foundation_modulus: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
+    layer_thickness: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
+    foundation_modulus: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
 
     def __check_init__(self):
         _check_foundation(self)
@@ -202,4 +203,3 @@ class ElasticFoundationDiscrete(AbstractLNDampedElasticLaw):
         d_theta = 2.0 * theta / m2
         local = jnp.maximum(local_penetration(delta, c + delta, psi), 0.0)
         return coefficient * d_theta * jnp.sum(local * jnp.cos(psi))
-

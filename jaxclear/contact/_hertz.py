@@ -44,8 +44,15 @@ class Hertz(AbstractContactLaw):
 
     def __check_init__(self):
         if self.stiffness is not None:
-            check_positive(type(self).__name__, "stiffness", self.stiffness, fix="pass K in N/m^n, or None for Hertz K")
-        check_positive(type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)")
+            check_positive(
+                type(self).__name__,
+                "stiffness",
+                self.stiffness,
+                fix="pass K in N/m^n, or None for Hertz K",
+            )
+        check_positive(
+            type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)"
+        )
 
     def __call__(
         self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing

@@ -67,12 +67,8 @@ class Hybrid(AbstractContactLaw):
     num_gauss_points: int = eqx.field(static=True, default=3)
     num_elements: int = eqx.field(static=True, default=10)
     damping_modification: bool = eqx.field(static=True, default=True)
-    layer_thickness: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
-    foundation_modulus: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
+    layer_thickness: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
+    foundation_modulus: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
 
     def __check_init__(self):
         check_restitution(type(self).__name__, self.restitution)
@@ -84,9 +80,19 @@ class Hybrid(AbstractContactLaw):
                 "pass True (Bai & Zhao factor) or False (plain L-N)"
             )
         if self.layer_thickness is not None:
-            check_positive(type(self).__name__, "layer_thickness", self.layer_thickness, fix="pass L in m, or None to match Hertz K")
+            check_positive(
+                type(self).__name__,
+                "layer_thickness",
+                self.layer_thickness,
+                fix="pass L in m, or None to match Hertz K",
+            )
         if self.foundation_modulus is not None:
-            check_positive(type(self).__name__, "foundation_modulus", self.foundation_modulus, fix="pass K_EF in Pa, or None for the bearing's material")
+            check_positive(
+                type(self).__name__,
+                "foundation_modulus",
+                self.foundation_modulus,
+                fix="pass K_EF in Pa, or None for the bearing's material",
+            )
 
     def hysteresis_factor(self) -> Float[Array, ""]:
         """χ̂ = 3(1 − c_e²)/4, times e^{2(1 − c_e)} with the damping modification."""
@@ -114,9 +120,10 @@ class Hybrid(AbstractContactLaw):
         delta_points = local_penetration(delta, e, psi_points)
         delta_elements = jnp.maximum(0.5 * (delta_points @ jnp.asarray(weights)), 0.0)
 
-        stiffness = foundation_coefficient(
-            geometry, self.foundation_modulus, self.layer_thickness
-        ) * d_theta  # K_i = K_EF R Δθ h / L, N/m
+        stiffness = (
+            foundation_coefficient(geometry, self.foundation_modulus, self.layer_thickness)
+            * d_theta
+        )  # K_i = K_EF R Δθ h / L, N/m
 
         cos_psi, sin_psi = jnp.cos(psi), jnp.sin(psi)
         rate = kin.penetration_rate * cos_psi + kin.tangential_rate * sin_psi

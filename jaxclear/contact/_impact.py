@@ -48,10 +48,24 @@ class AdamsImpact(AbstractContactLaw):
 
     def __check_init__(self):
         if self.stiffness is not None:
-            check_positive(type(self).__name__, "stiffness", self.stiffness, fix="pass K in N/m^e, or None for Hertz K")
-        check_positive(type(self).__name__, "exponent", self.exponent, fix="pass e > 0 (1.5 for Hertz)")
-        check_nonnegative(type(self).__name__, "max_damping", self.max_damping, fix="pass c_max >= 0 in N s/m")
-        check_positive(type(self).__name__, "max_damping_penetration", self.max_damping_penetration, fix="pass d_max > 0 in m (e.g. 1e-5)")
+            check_positive(
+                type(self).__name__,
+                "stiffness",
+                self.stiffness,
+                fix="pass K in N/m^e, or None for Hertz K",
+            )
+        check_positive(
+            type(self).__name__, "exponent", self.exponent, fix="pass e > 0 (1.5 for Hertz)"
+        )
+        check_nonnegative(
+            type(self).__name__, "max_damping", self.max_damping, fix="pass c_max >= 0 in N s/m"
+        )
+        check_positive(
+            type(self).__name__,
+            "max_damping_penetration",
+            self.max_damping_penetration,
+            fix="pass d_max > 0 in m (e.g. 1e-5)",
+        )
 
     def __call__(
         self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing

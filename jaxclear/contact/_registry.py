@@ -24,7 +24,7 @@ CONTACT_LAWS: Registry[AbstractContactLaw] = Registry(
         "elastic-foundation": ElasticFoundation,
         "elastic-foundation-discrete": ElasticFoundationDiscrete,
         "hybrid": Hybrid,
-    }
+    },
 )
 """Read-only mapping from registry name to contact law class (``jaxclear._registry.Registry``)."""
 

@@ -23,7 +23,10 @@ STEP_LENGTHS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])  # damped Newton step l
 def assembly_constraints(mechanism, q, t):
     """Φ plus the clearance joints' assembly rows (journal at its initial eccentricity)."""
     rows = [constraints(mechanism, q, t)]
-    rows += [clearance.assembly_constraint(joint, mechanism.index, q, t) for joint in mechanism.clearance_joints]
+    rows += [
+        clearance.assembly_constraint(joint, mechanism.index, q, t)
+        for joint in mechanism.clearance_joints
+    ]
     return jnp.concatenate(rows)
 
 
@@ -77,7 +80,12 @@ def assemble_state(mechanism, t0=0.0):
     jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
     phi_t = jax.jacfwd(assembly_constraints, argnums=2)(mechanism, q, t0)
     qd = qd - _least_norm_solve(jac, jac @ qd + phi_t)
-    return q, qd, jnp.max(jnp.abs(phi), initial=0.0), jnp.max(jnp.abs(jac @ qd + phi_t), initial=0.0)
+    return (
+        q,
+        qd,
+        jnp.max(jnp.abs(phi), initial=0.0),
+        jnp.max(jnp.abs(jac @ qd + phi_t), initial=0.0),
+    )
 
 
 def check_assembly(mechanism, t0=0.0):
@@ -92,7 +100,9 @@ def check_assembly(mechanism, t0=0.0):
     """
     q, qd, pos_res, _ = jax.jit(assemble_state)(mechanism, t0)
     labels = assembly_labels(mechanism)
-    jac = np.asarray(jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, jnp.asarray(t0, float)))
+    jac = np.asarray(
+        jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, jnp.asarray(t0, float))
+    )
     phi = np.asarray(assembly_constraints(mechanism, q, jnp.asarray(t0, float)))
     if jac.shape[0] > jac.shape[1]:
         raise AssemblyError(
@@ -100,7 +110,9 @@ def check_assembly(mechanism, t0=0.0):
             "(over-constrained): remove a joint or the driver."
         )
     if not np.all(np.isfinite(phi)):
-        raise AssemblyError("Assembly produced non-finite coordinates: check the bodies' initial positions.")
+        raise AssemblyError(
+            "Assembly produced non-finite coordinates: check the bodies' initial positions."
+        )
     if jac.shape[0]:
         worst = int(np.argmax(np.abs(phi)))
         if abs(phi[worst]) > POSITION_TOLERANCE * 1e3 or not float(pos_res) < 1e-7:

@@ -34,8 +34,13 @@ def _signature(element: ClearanceJoint):
         static = eqx.partition(getattr(element, field), eqx.is_array)[1]
         static_leaves, treedef = jax.tree_util.tree_flatten(static)
         parts.append((treedef, tuple(static_leaves)))
-    key = (type(element), tuple(parts), tuple((x.shape, x.dtype) for x in leaves), element.num_states,
-           element.memory_offset)
+    key = (
+        type(element),
+        tuple(parts),
+        tuple((x.shape, x.dtype) for x in leaves),
+        element.num_states,
+        element.memory_offset,
+    )
     try:
         hash(key)
     except TypeError:
@@ -80,7 +85,9 @@ def _vmapped(elements, function):
     """vmap of ``function(joint, *args)`` over the joints' stacked array leaves."""
     dyn = [jax.tree_util.tree_leaves(eqx.partition(e, eqx.is_array)[0]) for e in elements]
     first, static = eqx.partition(elements[0], eqx.is_array)
-    stacked = jax.tree_util.tree_unflatten(jax.tree_util.tree_structure(first), [jnp.stack(x) for x in zip(*dyn)])
+    stacked = jax.tree_util.tree_unflatten(
+        jax.tree_util.tree_structure(first), [jnp.stack(x) for x in zip(*dyn)]
+    )
 
     def call(dynamic, *args):
         return function(eqx.combine(dynamic, static), *args)
@@ -93,7 +100,9 @@ def batched_force_and_cache(mechanism, elements, q, qd, t, states):
     ib, ij = _indices(mechanism, elements)
     q3, qd3 = _extended(q), _extended(qd)
     fn = _vmapped(elements, clearance.local_force_and_cache)
-    on_bearing, on_journal, cache = fn(q3[ib], qd3[ib], q3[ij], qd3[ij], _stack_states(elements, states))
+    on_bearing, on_journal, cache = fn(
+        q3[ib], qd3[ib], q3[ij], qd3[ij], _stack_states(elements, states)
+    )
     force = jnp.zeros_like(q3).at[ib].add(on_bearing).at[ij].add(on_journal)
     return force[:-1].reshape(-1), cache
 
@@ -103,7 +112,9 @@ def batched_state_rates(mechanism, elements, cache, q, qd, qdd, t, states) -> di
     ib, ij = _indices(mechanism, elements)
     q3, qd3, qdd3 = _extended(q), _extended(qd), _extended(qdd)
     fn = _vmapped(elements, clearance.local_state_derivative)
-    rates = fn(cache, qdd3[ib], qdd3[ij], q3[ib], qd3[ib], q3[ij], qd3[ij], _stack_states(elements, states))
+    rates = fn(
+        cache, qdd3[ib], qdd3[ij], q3[ib], qd3[ib], q3[ij], qd3[ij], _stack_states(elements, states)
+    )
     return {e.name: rates[k] for k, e in enumerate(elements)}
 
 

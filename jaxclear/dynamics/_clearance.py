@@ -115,7 +115,9 @@ class ClearanceOutputs(eqx.Module):
 
     def __getitem__(self, key: str) -> Array:
         if key not in self.keys():
-            raise KeyError(f"{key!r} is not an output of this clearance joint; outputs: {', '.join(self.keys())}.")
+            raise KeyError(
+                f"{key!r} is not an output of this clearance joint; outputs: {', '.join(self.keys())}."
+            )
         return getattr(self, key)
 
     def __contains__(self, key) -> bool:
@@ -201,13 +203,17 @@ def kinematics(joint: ClearanceJoint, index: Index, q, qd) -> JointKinematics:
     return local_kinematics(joint, *_gather(body_indices(joint, index), q, qd))
 
 
-def local_contact_forces(joint: ClearanceJoint, qb, qdb, qj, qdj, state) -> tuple[JointKinematics, ContactForces]:
+def local_contact_forces(
+    joint: ClearanceJoint, qb, qdb, qj, qdj, state
+) -> tuple[JointKinematics, ContactForces]:
     """``contact_forces`` from the two bodies' coordinates and velocities."""
     k = local_kinematics(joint, qb, qdb, qj, qdj)
     kin = ContactKinematics(
         penetration=k.penetration,
         penetration_rate=k.penetration_rate,
-        impact_velocity=impact_velocity(memory(state[0], k.penetration_rate, joint.memory_offset), joint.smoothing),
+        impact_velocity=impact_velocity(
+            memory(state[0], k.penetration_rate, joint.memory_offset), joint.smoothing
+        ),
         tangential_rate=k.tangential_rate,
     )
     normal, law_tangential = joint.contact_law(kin, joint.geometry, joint.smoothing)
@@ -215,11 +221,16 @@ def local_contact_forces(joint: ClearanceJoint, qb, qdb, qj, qdj, state) -> tupl
     tangential = friction + law_tangential
     on_journal = -normal * k.normal + tangential * k.tangent
     return k, ContactForces(
-        normal_force=normal, friction_force=friction, tangential_force=tangential, force_on_journal=on_journal
+        normal_force=normal,
+        friction_force=friction,
+        tangential_force=tangential,
+        force_on_journal=on_journal,
     )
 
 
-def contact_forces(joint: ClearanceJoint, index: Index, q, qd, state) -> tuple[JointKinematics, ContactForces]:
+def contact_forces(
+    joint: ClearanceJoint, index: Index, q, qd, state
+) -> tuple[JointKinematics, ContactForces]:
     """(kinematics, forces) of the joint at (q, q̇) with internal state ``state``."""
     return local_contact_forces(joint, *_gather(body_indices(joint, index), q, qd), state)
 
@@ -270,32 +281,54 @@ def local_state_derivative(joint: ClearanceJoint, cache, qddb, qddj, qb, qdb, qj
     c = joint.geometry.clearance
     if joint.memory_offset:
         m_dot = memory_offset_rate(
-            state[0], k.penetration, k.eccentricity, c, k.tangential_rate, normal_accel, joint.smoothing
+            state[0],
+            k.penetration,
+            k.eccentricity,
+            c,
+            k.tangential_rate,
+            normal_accel,
+            joint.smoothing,
         )
     else:
         m_dot = memory_rate(
-            state[0], k.penetration, k.penetration_rate, k.eccentricity, c, k.tangential_rate,
-            normal_accel, joint.smoothing,
+            state[0],
+            k.penetration,
+            k.penetration_rate,
+            k.eccentricity,
+            c,
+            k.tangential_rate,
+            normal_accel,
+            joint.smoothing,
         )
-    z_dot = joint.friction_law.state_derivative(k.slip_velocity, f.normal_force, state[1:], joint.smoothing)
+    z_dot = joint.friction_law.state_derivative(
+        k.slip_velocity, f.normal_force, state[1:], joint.smoothing
+    )
     return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
 
-def state_derivative_cached(joint: ClearanceJoint, cache, index: Index, q, qd, qdd, state) -> Float[Array, " s"]:
+def state_derivative_cached(
+    joint: ClearanceJoint, cache, index: Index, q, qd, qdd, state
+) -> Float[Array, " s"]:
     """``state_derivative`` reusing the cache of ``force_and_cache``."""
     ib, ij = body_indices(joint, index)
-    return local_state_derivative(joint, cache, _body(qdd, ib), _body(qdd, ij), *_gather((ib, ij), q, qd), state)
+    return local_state_derivative(
+        joint, cache, _body(qdd, ib), _body(qdd, ij), *_gather((ib, ij), q, qd), state
+    )
 
 
 def state_derivative(joint: ClearanceJoint, index: Index, q, qd, qdd, state) -> Float[Array, " s"]:
     """Time derivative of the internal state; ``qdd`` is this evaluation's acceleration."""
-    return state_derivative_cached(joint, contact_forces(joint, index, q, qd, state), index, q, qd, qdd, state)
+    return state_derivative_cached(
+        joint, contact_forces(joint, index, q, qd, state), index, q, qd, qdd, state
+    )
 
 
 def local_stiff_state_derivative(joint: ClearanceJoint, qb, qdb, qj, qdj, state):
     """``stiff_state_derivative`` from the two bodies' coordinates and velocities."""
     k = local_kinematics(joint, qb, qdb, qj, qdj)
-    m_dot = memory_relaxation(state[0], k.penetration, k.penetration_rate, joint.smoothing, joint.memory_offset)
+    m_dot = memory_relaxation(
+        state[0], k.penetration, k.penetration_rate, joint.smoothing, joint.memory_offset
+    )
     z_dot = joint.friction_law.stiff_state_derivative(k.slip_velocity, state[1:], joint.smoothing)
     return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 

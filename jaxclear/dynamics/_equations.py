@@ -48,7 +48,9 @@ class Evaluation(eqx.Module):
     state_rates: dict[str, Float[Array, " s"]]
 
 
-def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = None) -> Float[Array, " n"]:
+def generalized_forces(
+    mechanism, t, q, qd, states: dict, caches: dict | None = None
+) -> Float[Array, " n"]:
     """Q: gravity plus every force element (applied forces, springs), then the clearance contacts.
 
     Same-kind clearance joints are evaluated together (``_batched``). If ``caches`` is a dict, each
@@ -56,7 +58,9 @@ def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = 
     under the group's position.
     """
     m = jnp.stack([b.mass for b in mechanism.bodies])
-    grav = jnp.concatenate([m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1)
+    grav = jnp.concatenate(
+        [m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1
+    )
     total = grav.reshape(-1).astype(q.dtype)
     for element in mechanism.forces:
         force, cache = element.force_and_cache(mechanism.index, q, qd, t, states[element.name])
@@ -65,7 +69,9 @@ def generalized_forces(mechanism, t, q, qd, states: dict, caches: dict | None = 
             caches[element.name] = cache
     for k, group in enumerate(groups(mechanism)):
         if len(group) == 1:
-            force, cache = clearance.force_and_cache(group[0], mechanism.index, q, qd, states[group[0].name])
+            force, cache = clearance.force_and_cache(
+                group[0], mechanism.index, q, qd, states[group[0].name]
+            )
         else:
             force, cache = batched_force_and_cache(mechanism, group, q, qd, t, states)
         total = total + force
@@ -132,15 +138,27 @@ def evaluate(mechanism, t, y) -> Evaluation:
     qdd, lam, phi, phi_dot = solve_accelerations(mechanism, t, q, qd, forces)
     rates = {}
     for e in mechanism.forces:
-        rates[e.name] = e.state_derivative_cached(caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name])
+        rates[e.name] = e.state_derivative_cached(
+            caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name]
+        )
     for k, group in enumerate(groups(mechanism)):
         if len(group) == 1:
             e = group[0]
-            rates[e.name] = clearance.state_derivative_cached(e, caches[k], mechanism.index, q, qd, qdd, states[e.name])
+            rates[e.name] = clearance.state_derivative_cached(
+                e, caches[k], mechanism.index, q, qd, qdd, states[e.name]
+            )
         else:
             rates.update(batched_state_rates(mechanism, group, caches[k], q, qd, qdd, t, states))
     return Evaluation(
-        q=q, qd=qd, qdd=qdd, multipliers=lam, phi=phi, phi_dot=phi_dot, forces=forces, states=states, state_rates=rates
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        multipliers=lam,
+        phi=phi,
+        phi_dot=phi_dot,
+        forces=forces,
+        states=states,
+        state_rates=rates,
     )
 
 
@@ -155,11 +173,16 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """The stiff part of dy/dt (internal states only), integrated implicitly by IMEX solvers."""
     q, qd, states = mechanism.split_state(y)
     n = mechanism.num_coordinates
-    rates = {e.name: e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name]) for e in mechanism.forces}
+    rates = {
+        e.name: e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name])
+        for e in mechanism.forces
+    }
     for group in groups(mechanism):
         if len(group) == 1:
             e = group[0]
-            rates[e.name] = clearance.stiff_state_derivative(e, mechanism.index, q, qd, states[e.name])
+            rates[e.name] = clearance.stiff_state_derivative(
+                e, mechanism.index, q, qd, states[e.name]
+            )
         else:
             rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
     parts = [jnp.zeros((2 * n,), y.dtype)] + [
@@ -203,7 +226,9 @@ def memory_offset_shift(mechanism, y) -> Float[Array, " N"]:
 def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
     """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
     internal = [e.initial_state(mechanism.index, q0, qd0) for e in mechanism.forces]
-    internal += [clearance.initial_state(c, mechanism.index, q0, qd0) for c in mechanism.clearance_joints]
+    internal += [
+        clearance.initial_state(c, mechanism.index, q0, qd0) for c in mechanism.clearance_joints
+    ]
     parts = [q0, qd0, *internal]
     return jnp.concatenate([jnp.reshape(jnp.asarray(p, dtype=float), (-1,)) for p in parts])
 
@@ -211,6 +236,8 @@ def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
 def clearance_outputs(mechanism, evaluation: Evaluation) -> dict[str, "clearance.ClearanceOutputs"]:
     """{clearance joint name: ``ClearanceOutputs``} at the instant of ``evaluation``."""
     return {
-        c.name: clearance.outputs(c, mechanism.index, evaluation.q, evaluation.qd, evaluation.states[c.name])
+        c.name: clearance.outputs(
+            c, mechanism.index, evaluation.q, evaluation.qd, evaluation.states[c.name]
+        )
         for c in mechanism.clearance_joints
     }

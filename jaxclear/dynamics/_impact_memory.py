@@ -44,7 +44,16 @@ def freeze_weight(penetration, smoothing):
     return 1.0 - smooth_step(penetration + w_m, w_m)
 
 
-def memory_rate(memory, penetration, penetration_rate, eccentricity, clearance, tangential_rate, normal_accel, smoothing):
+def memory_rate(
+    memory,
+    penetration,
+    penetration_rate,
+    eccentricity,
+    clearance,
+    tangential_rate,
+    normal_accel,
+    smoothing,
+):
     """ṁ for one joint (absolute form).
 
     Args:
@@ -54,10 +63,14 @@ def memory_rate(memory, penetration, penetration_rate, eccentricity, clearance, 
     """
     e = jnp.maximum(eccentricity, ECCENTRICITY_FLOOR * clearance)
     d_rate = tangential_rate**2 / e + normal_accel
-    return freeze_weight(penetration, smoothing) * (d_rate + smoothing.memory_rate * (penetration_rate - memory))
+    return freeze_weight(penetration, smoothing) * (
+        d_rate + smoothing.memory_rate * (penetration_rate - memory)
+    )
 
 
-def memory_offset_rate(offset, penetration, eccentricity, clearance, tangential_rate, normal_accel, smoothing):
+def memory_offset_rate(
+    offset, penetration, eccentricity, clearance, tangential_rate, normal_accel, smoothing
+):
     """u̇ for one joint (offset form, u = m − δ̇).
 
     Args:

@@ -58,4 +58,3 @@ class AbstractFrictionLaw(eqx.Module):
         explicitly. Default: none.
         """
         return jnp.zeros((self.num_states,))
-

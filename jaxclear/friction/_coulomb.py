@@ -20,14 +20,22 @@ class Coulomb(AbstractFrictionLaw):
     """
 
     friction_coefficient: Float[Array, ""] = eqx.field(converter=_array, default=0.1)
-    velocity_tolerance: Float[Array, ""] | None = eqx.field(
-        converter=_optional_array, default=None
-    )
+    velocity_tolerance: Float[Array, ""] | None = eqx.field(converter=_optional_array, default=None)
 
     def __check_init__(self):
-        check_nonnegative(type(self).__name__, "friction_coefficient", self.friction_coefficient, fix="pass μ >= 0")
+        check_nonnegative(
+            type(self).__name__,
+            "friction_coefficient",
+            self.friction_coefficient,
+            fix="pass μ >= 0",
+        )
         if self.velocity_tolerance is not None:
-            check_positive(type(self).__name__, "velocity_tolerance", self.velocity_tolerance, fix="pass v_ε > 0 in m/s, or None for Smoothing.velocity_width")
+            check_positive(
+                type(self).__name__,
+                "velocity_tolerance",
+                self.velocity_tolerance,
+                fix="pass v_ε > 0 in m/s, or None for Smoothing.velocity_width",
+            )
 
     def force(
         self,
@@ -75,9 +83,21 @@ class ModifiedCoulomb(AbstractFrictionLaw):
     upper_velocity: Float[Array, ""] = eqx.field(converter=_array, default=1e-3)
 
     def __check_init__(self):
-        check_nonnegative(type(self).__name__, "friction_coefficient", self.friction_coefficient, fix="pass μ >= 0")
-        check_nonnegative(type(self).__name__, "lower_velocity", self.lower_velocity, fix="pass v0 >= 0 in m/s")
-        check_positive(type(self).__name__, "upper_velocity - lower_velocity", self.upper_velocity - self.lower_velocity, fix="pass upper_velocity (v1) > lower_velocity (v0)")
+        check_nonnegative(
+            type(self).__name__,
+            "friction_coefficient",
+            self.friction_coefficient,
+            fix="pass μ >= 0",
+        )
+        check_nonnegative(
+            type(self).__name__, "lower_velocity", self.lower_velocity, fix="pass v0 >= 0 in m/s"
+        )
+        check_positive(
+            type(self).__name__,
+            "upper_velocity - lower_velocity",
+            self.upper_velocity - self.lower_velocity,
+            fix="pass upper_velocity (v1) > lower_velocity (v0)",
+        )
 
     def dynamic_correction(
         self, speed: Float[Array, "..."], smoothing: Smoothing

@@ -44,12 +44,33 @@ class LuGre(AbstractFrictionLaw):
     stribeck_velocity: Float[Array, ""] = eqx.field(converter=_array, default=1e-3)
 
     def __check_init__(self):
-        check_positive(type(self).__name__, "bristle_stiffness", self.bristle_stiffness, fix="pass σ0 > 0 in 1/m")
-        check_nonnegative(type(self).__name__, "bristle_damping", self.bristle_damping, fix="pass σ1 >= 0 in s/m")
-        check_nonnegative(type(self).__name__, "viscous_friction", self.viscous_friction, fix="pass σ2 >= 0 in s/m")
-        check_positive(type(self).__name__, "static_friction", self.static_friction, fix="pass μ_s > 0")
-        check_positive(type(self).__name__, "kinetic_friction", self.kinetic_friction, fix="pass μ_k > 0")
-        check_positive(type(self).__name__, "stribeck_velocity", self.stribeck_velocity, fix="pass v_s > 0 in m/s")
+        check_positive(
+            type(self).__name__,
+            "bristle_stiffness",
+            self.bristle_stiffness,
+            fix="pass σ0 > 0 in 1/m",
+        )
+        check_nonnegative(
+            type(self).__name__, "bristle_damping", self.bristle_damping, fix="pass σ1 >= 0 in s/m"
+        )
+        check_nonnegative(
+            type(self).__name__,
+            "viscous_friction",
+            self.viscous_friction,
+            fix="pass σ2 >= 0 in s/m",
+        )
+        check_positive(
+            type(self).__name__, "static_friction", self.static_friction, fix="pass μ_s > 0"
+        )
+        check_positive(
+            type(self).__name__, "kinetic_friction", self.kinetic_friction, fix="pass μ_k > 0"
+        )
+        check_positive(
+            type(self).__name__,
+            "stribeck_velocity",
+            self.stribeck_velocity,
+            fix="pass v_s > 0 in m/s",
+        )
 
     def stribeck(self, slip_velocity: Float[Array, "..."]) -> Float[Array, "..."]:
         """g(v) = μ_k + (μ_s − μ_k) exp(−(v/v_s)²), dimensionless."""

@@ -13,7 +13,7 @@ FRICTION_LAWS: Registry[AbstractFrictionLaw] = Registry(
         "coulomb": Coulomb,
         "modified-coulomb": ModifiedCoulomb,
         "lugre": LuGre,
-    }
+    },
 )
 """Read-only mapping from registry name to friction law class (``jaxclear._registry.Registry``)."""
 

@@ -34,7 +34,9 @@ class Body(eqx.Module):
     def __check_init__(self):
         owner = f"Body {self.name!r}"
         if not isinstance(self.name, str) or not self.name or self.name == GROUND:
-            raise ValueError(f"Body name must be a non-empty string other than {GROUND!r}, got {self.name!r}.")
+            raise ValueError(
+                f"Body name must be a non-empty string other than {GROUND!r}, got {self.name!r}."
+            )
         check_positive(owner, "mass", self.mass, "kg")
         check_positive(owner, "inertia", self.inertia, "kg m^2")
         check_shape(owner, "position", self.position, (3,))

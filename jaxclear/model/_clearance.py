@@ -86,15 +86,32 @@ class ClearanceJoint(eqx.Module):
                     f"({float(g.bearing_radius)} m); the clearance c = R_B - R_J must be positive."
                 )
         s = self.smoothing
-        for attr in ("penetration_width", "velocity_width", "memory_width", "memory_rate", "min_impact_velocity", "force_width"):
+        for attr in (
+            "penetration_width",
+            "velocity_width",
+            "memory_width",
+            "memory_rate",
+            "min_impact_velocity",
+            "force_width",
+        ):
             check_positive(owner, f"smoothing.{attr}", getattr(s, attr))
         if not isinstance(self.contact_law, AbstractContactLaw):
-            raise TypeError(f"{owner}: contact_law must be an AbstractContactLaw, got {type(self.contact_law).__name__}.")
+            raise TypeError(
+                f"{owner}: contact_law must be an AbstractContactLaw, got {type(self.contact_law).__name__}."
+            )
         if not isinstance(self.friction_law, AbstractFrictionLaw):
-            raise TypeError(f"{owner}: friction_law must be an AbstractFrictionLaw, got {type(self.friction_law).__name__}.")
-        if all(is_concrete(x) for x in (self.initial_eccentricity, g.bearing_radius, g.journal_radius)):
-            if np.linalg.norm(np.asarray(self.initial_eccentricity)) > float(g.bearing_radius - g.journal_radius):
-                raise ModelError(f"{owner}: initial_eccentricity lies outside the clearance circle.")
+            raise TypeError(
+                f"{owner}: friction_law must be an AbstractFrictionLaw, got {type(self.friction_law).__name__}."
+            )
+        if all(
+            is_concrete(x) for x in (self.initial_eccentricity, g.bearing_radius, g.journal_radius)
+        ):
+            if np.linalg.norm(np.asarray(self.initial_eccentricity)) > float(
+                g.bearing_radius - g.journal_radius
+            ):
+                raise ModelError(
+                    f"{owner}: initial_eccentricity lies outside the clearance circle."
+                )
 
     @classmethod
     def replacing(
@@ -128,9 +145,13 @@ class ClearanceJoint(eqx.Module):
         geometry = kwargs.pop("geometry", None) or ContactGeometry(0.01, 0.0095)
         if clearance is not None:
             check_positive(owner, "clearance", clearance, "m")
-            geometry = eqx.tree_at(lambda g: g.journal_radius, geometry, geometry.bearing_radius - clearance)
+            geometry = eqx.tree_at(
+                lambda g: g.journal_radius, geometry, geometry.bearing_radius - clearance
+            )
             if is_concrete(geometry.journal_radius) and not float(geometry.journal_radius) > 0:
-                raise ModelError(f"{owner}: clearance {clearance} m is not smaller than the bearing radius.")
+                raise ModelError(
+                    f"{owner}: clearance {clearance} m is not smaller than the bearing radius."
+                )
         if journal_body == joint.body_j:
             bearing = (joint.body_i, joint.point_i)
             journal = (joint.body_j, joint.point_j)

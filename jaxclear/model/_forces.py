@@ -64,7 +64,9 @@ class AbstractForceElement(eqx.Module):
         """
         return self.generalized_force(index, q, qd, t, state), None
 
-    def state_derivative_cached(self, cache, index: Index, q, qd, qdd, t, state) -> Float[Array, " s"]:
+    def state_derivative_cached(
+        self, cache, index: Index, q, qd, qdd, t, state
+    ) -> Float[Array, " s"]:
         """``state_derivative`` reusing the cache of ``force_and_cache``."""
         return self.state_derivative(index, q, qd, qdd, t, state)
 
@@ -167,7 +169,9 @@ class SpringDamper(AbstractForceElement):
         rate = dot2(u, vj - vi)
         tension = self.stiffness * (length - self.free_length) + self.damping * rate
         f_on_i = tension * u
-        return point_force_to_generalized(q, i, pi, f_on_i) + point_force_to_generalized(q, j, pj, -f_on_i)
+        return point_force_to_generalized(q, i, pi, f_on_i) + point_force_to_generalized(
+            q, j, pj, -f_on_i
+        )
 
     def potential_energy(self, index, q):
         """Elastic energy ½ k (ℓ − ℓ0)², J."""

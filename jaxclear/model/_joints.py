@@ -116,7 +116,9 @@ class TranslationalJoint(AbstractJoint):
         axis = self.axis / jnp.linalg.norm(self.axis)
         normal_local = jnp.stack([-axis[1], axis[0]])
         c, s = jnp.cos(phi_j), jnp.sin(phi_j)
-        normal = jnp.stack([c * normal_local[0] - s * normal_local[1], s * normal_local[0] + c * normal_local[1]])
+        normal = jnp.stack(
+            [c * normal_local[0] - s * normal_local[1], s * normal_local[0] + c * normal_local[1]]
+        )
         return jnp.stack([phi_i - phi_j - self.angle, dot2(normal, ri - rj)])
 
 

@@ -70,11 +70,17 @@ class Mechanism(eqx.Module):
                 if not isinstance(member, kind):
                     raise TypeError(
                         f"Mechanism: {field} holds a {type(member).__name__}; it takes {kind.__name__}s"
-                        + (" (clearance joints go in clearance_joints)" if isinstance(member, ClearanceJoint) else "")
+                        + (
+                            " (clearance joints go in clearance_joints)"
+                            if isinstance(member, ClearanceJoint)
+                            else ""
+                        )
                         + "."
                     )
         if self.driver is not None and not isinstance(self.driver, AbstractDriver):
-            raise TypeError(f"Mechanism: driver must be an AbstractDriver, got {type(self.driver).__name__}.")
+            raise TypeError(
+                f"Mechanism: driver must be an AbstractDriver, got {type(self.driver).__name__}."
+            )
         known = set(names) | {GROUND}
         for element in (*self.constraint_elements, *self.force_elements):
             for body in element.bodies:
@@ -206,5 +212,3 @@ def describe(mechanism: Mechanism) -> str:
         lines.append(f"  {type(f).__name__} {f.name!r}")
     lines.append(f"degrees of freedom (driver included): {mechanism.degrees_of_freedom}")
     return "\n".join(lines)
-
-

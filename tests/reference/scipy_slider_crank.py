@@ -31,6 +31,7 @@ floor; they matter only for comparing the two codes as the *same* model.
 Sign conventions: crank_torque > 0 means the motor does positive work when omega > 0; the reaction
 of an ideal joint is the force magnitude |lambda_J|.  Eccentricities are global x/y components.
 """
+
 import time
 
 import numpy as np
@@ -91,12 +92,16 @@ def friction_law(spec):
     if spec is None:
         return None
     kind, args = spec[0], tuple(spec[1:])
-    names = {"coulomb": ("mu", "v_eps"),
-             "modified-coulomb": ("mu", "v0", "v1"),
-             "lugre": ("sigma0", "sigma1", "sigma2", "mu_s", "mu_k", "v_s")}
-    defaults = {"coulomb": {},
-                "modified-coulomb": dict(v0=1e-4, v1=1e-3),
-                "lugre": dict(sigma0=1e5, sigma1=316.0, sigma2=0.0, mu_s=0.15, mu_k=0.1, v_s=1e-3)}
+    names = {
+        "coulomb": ("mu", "v_eps"),
+        "modified-coulomb": ("mu", "v0", "v1"),
+        "lugre": ("sigma0", "sigma1", "sigma2", "mu_s", "mu_k", "v_s"),
+    }
+    defaults = {
+        "coulomb": {},
+        "modified-coulomb": dict(v0=1e-4, v1=1e-3),
+        "lugre": dict(sigma0=1e5, sigma1=316.0, sigma2=0.0, mu_s=0.15, mu_k=0.1, v_s=1e-3),
+    }
     if kind not in names:
         raise ValueError(f"unknown friction law {kind!r}; choose one of {sorted(names)}")
     if len(args) > len(names[kind]):
@@ -122,13 +127,13 @@ def _point(q, qd, k, s):
     c, sn = np.cos(q[3 * k + 2]), np.sin(q[3 * k + 2])
     As = np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
     Bs = np.array([-As[1], As[0]])
-    return q[3 * k:3 * k + 2] + As, qd[3 * k:3 * k + 2] + qd[3 * k + 2] * Bs, As, Bs
+    return q[3 * k : 3 * k + 2] + As, qd[3 * k : 3 * k + 2] + qd[3 * k + 2] * Bs, As, Bs
 
 
 def _point_acc(qd, qdd, k, As, Bs):
     if k < 0:
         return np.zeros(2)
-    return qdd[3 * k:3 * k + 2] + qdd[3 * k + 2] * Bs - qd[3 * k + 2] ** 2 * As
+    return qdd[3 * k : 3 * k + 2] + qdd[3 * k + 2] * Bs - qd[3 * k + 2] ** 2 * As
 
 
 def _kx(a):
@@ -140,10 +145,29 @@ def _cross(a, f):
 
 
 class SliderCrank:
-    def __init__(self, clearance_joints=("B",), rpm=5000.0, mode="smooth", restitution=0.9,
-                 friction=None, gravity=False, clearance=5e-4, bearing_radius=0.01, E=207e9,
-                 nu=0.3, alpha=5.0, beta=5.0, w_delta=1e-7, w_m=1e-7, k_m=1e6, v_min=1e-4,
-                 w_factor=1e-3, track_work=False, w_v=1e-5, smoothing_variant="jaxclear"):
+    def __init__(
+        self,
+        clearance_joints=("B",),
+        rpm=5000.0,
+        mode="smooth",
+        restitution=0.9,
+        friction=None,
+        gravity=False,
+        clearance=5e-4,
+        bearing_radius=0.01,
+        E=207e9,
+        nu=0.3,
+        alpha=5.0,
+        beta=5.0,
+        w_delta=1e-7,
+        w_m=1e-7,
+        k_m=1e6,
+        v_min=1e-4,
+        w_factor=1e-3,
+        track_work=False,
+        w_v=1e-5,
+        smoothing_variant="jaxclear",
+    ):
         assert mode in ("smooth", "sharp") and set(clearance_joints) <= set("OAB")
         assert smoothing_variant in ("jaxclear", "original"), smoothing_variant
         self.cj = tuple(j for j in "OAB" if j in clearance_joints)
@@ -157,7 +181,13 @@ class SliderCrank:
         self.flaw = friction_law(friction)
         self.w_v, self.variant = w_v, smoothing_variant
         self.alpha, self.beta = alpha, beta
-        self.w_delta, self.w_m, self.k_m, self.v_min, self.w_factor = w_delta, w_m, k_m, v_min, w_factor
+        self.w_delta, self.w_m, self.k_m, self.v_min, self.w_factor = (
+            w_delta,
+            w_m,
+            k_m,
+            v_min,
+            w_factor,
+        )
         self.minv = 1.0 / np.array([v for k in range(3) for v in (MASS[k], MASS[k], INERTIA[k])])
         self.Qg = np.zeros(9)
         if gravity:
@@ -180,10 +210,10 @@ class SliderCrank:
             rk, _, Ak, Bk = _point(q, qd, k, sk)
             Phi[rows] = ri - rk
             if i >= 0:
-                Pq[rows, 3 * i:3 * i + 2] = EYE2
+                Pq[rows, 3 * i : 3 * i + 2] = EYE2
                 Pq[rows, 3 * i + 2] = Bi
                 gam[rows] += Ai * qd[3 * i + 2] ** 2
-            Pq[rows, 3 * k:3 * k + 2] = -EYE2
+            Pq[rows, 3 * k : 3 * k + 2] = -EYE2
             Pq[rows, 3 * k + 2] = -Bk
             gam[rows] -= Ak * qd[3 * k + 2] ** 2
         Pq[-3, 7], Phi[-3] = 1.0, q[7]  # slider on the x axis
@@ -248,21 +278,38 @@ class SliderCrank:
         vT = t_vec @ (vQII - vQI)
         FT, zdot = self.friction_force(vT, FN, z)
         f = -FN * n + FT * t_vec  # on the journal
-        Q[3 * k:3 * k + 2] += f
+        Q[3 * k : 3 * k + 2] += f
         Q[3 * k + 2] += _cross(armII, f)
         if i >= 0:
-            Q[3 * i:3 * i + 2] -= f
+            Q[3 * i : 3 * i + 2] -= f
             Q[3 * i + 2] -= _cross(armI, f)
-        return dict(e_vec=e_vec, e=e, n=n, edot=edot, delta=delta, ddelta=ddelta, FN=FN, FT=FT,
-                    vT=vT, zdot=zdot, z=z, i=i, k=k, AI=AI, BI=BI, AII=AII, BII=BII)
+        return dict(
+            e_vec=e_vec,
+            e=e,
+            n=n,
+            edot=edot,
+            delta=delta,
+            ddelta=ddelta,
+            FN=FN,
+            FT=FT,
+            vT=vT,
+            zdot=zdot,
+            z=z,
+            i=i,
+            k=k,
+            AI=AI,
+            BI=BI,
+            AII=AII,
+            BII=BII,
+        )
 
     def evaluate(self, t, y, dminus=None):
         """Full evaluation: returns (ydot, info dict)."""
         self.n_eval += 1
         q, qd = y[:9], y[9:18]
-        mem = y[18:18 + self.nm] if self.mode == "smooth" else dminus
+        mem = y[18 : 18 + self.nm] if self.mode == "smooth" else dminus
         Q = self.Qg.copy()
-        zs = y[self.iz:self.iz + self.nz] if self.nz else np.zeros(self.nc)
+        zs = y[self.iz : self.iz + self.nz] if self.nz else np.zeros(self.nc)
         cinfo = [self.contact(j, q, qd, Q, mem[a], zs[a]) for a, j in enumerate(self.cj)]
         Phi, Pq, gam, Phid = self.constraints(t, q, qd)
         PM = Pq * self.minv
@@ -277,10 +324,13 @@ class SliderCrank:
                 w = memory_weight(ci["delta"], self.w_m)
                 if w > 0.0:
                     eacc = _point_acc(qd, qdd, ci["k"], ci["AII"], ci["BII"]) - _point_acc(
-                        qd, qdd, ci["i"], ci["AI"], ci["BI"])
+                        qd, qdd, ci["i"], ci["AI"], ci["BI"]
+                    )
                     dd = ci["n"] @ eacc
                     if self.variant == "jaxclear":  # (t'e')^2 / max(e, 1e-3 c)
-                        dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / max(ci["e"], 1e-3 * self.c)
+                        dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / max(
+                            ci["e"], 1e-3 * self.c
+                        )
                     elif ci["e"] > 1e-15:
                         dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / ci["e"]
                     mdot[a] = w * (dd + self.k_m * (ci["ddelta"] - mem[a]))
@@ -302,7 +352,9 @@ class SliderCrank:
         y = np.zeros(self.n_state)
         y[:9], y[9:18] = q, qd
         if self.mode == "smooth":  # m = delta' (= 0 at the start, n arbitrary at e = 0)
-            y[18:18 + self.nm] = [self.contact(j, q, qd, np.zeros(9), 1.0)["ddelta"] for j in self.cj]
+            y[18 : 18 + self.nm] = [
+                self.contact(j, q, qd, np.zeros(9), 1.0)["ddelta"] for j in self.cj
+            ]
         return y
 
     def energy(self, y):
@@ -329,10 +381,24 @@ def _delta_event(model, a, offset, direction, terminal):
     return ev
 
 
-def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolution=360,
-             mode="smooth", method=None, rtol=1e-6, atol=1e-9, restitution=0.9, friction=None,
-             gravity=False, clearance=5e-4, max_step=np.inf, track_work=False, count_onsets=True,
-             **smoothing):
+def simulate(
+    clearance_joints=("B",),
+    rpm=5000,
+    revolutions=2,
+    points_per_revolution=360,
+    mode="smooth",
+    method=None,
+    rtol=1e-6,
+    atol=1e-9,
+    restitution=0.9,
+    friction=None,
+    gravity=False,
+    clearance=5e-4,
+    max_step=np.inf,
+    track_work=False,
+    count_onsets=True,
+    **smoothing,
+):
     """Simulate; returns dict of arrays on the uniform grid t plus 'stats'.
 
     smoothing: w_delta, w_m, k_m, v_min, w_factor (smooth mode; v_min also floors the latched
@@ -343,8 +409,17 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
     count_onsets: smooth mode only; False drops the (non-terminal) delta = 0 events that count
     contact onsets (stats onsets then 0), e.g. for timing the bare integration.
     """
-    model = SliderCrank(clearance_joints, rpm, mode, restitution, friction, gravity, clearance,
-                        track_work=track_work, **smoothing)
+    model = SliderCrank(
+        clearance_joints,
+        rpm,
+        mode,
+        restitution,
+        friction,
+        gravity,
+        clearance,
+        track_work=track_work,
+        **smoothing,
+    )
     method = method or ("Radau" if mode == "smooth" else "DOP853")
     T = revolutions * 60.0 / rpm
     npts = int(round(revolutions * points_per_revolution)) + 1
@@ -356,9 +431,20 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
     nfev, njev, onsets = 0, 0, np.zeros(model.nc, int)
     ys, ctx = [], []  # output states and the latched impact velocities in force at each
     if mode == "smooth":
-        events = [_delta_event(model, a, 0.0, 1, False) for a in range(model.nc)] if count_onsets else []
-        sol = solve_ivp(lambda t, y: model.evaluate(t, y)[0], (0.0, T), y0, method=method,
-                        t_eval=grid, events=events or None, rtol=rtol, atol=atol, max_step=max_step)
+        events = (
+            [_delta_event(model, a, 0.0, 1, False) for a in range(model.nc)] if count_onsets else []
+        )
+        sol = solve_ivp(
+            lambda t, y: model.evaluate(t, y)[0],
+            (0.0, T),
+            y0,
+            method=method,
+            t_eval=grid,
+            events=events or None,
+            rtol=rtol,
+            atol=atol,
+            max_step=max_step,
+        )
         if sol.status < 0:
             raise RuntimeError(sol.message)
         nfev, njev = sol.nfev, sol.njev
@@ -374,12 +460,24 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
             nseg += 1
             if nseg > 200000:
                 raise RuntimeError("too many contact events")
-            events = [_delta_event(model, a, HYST if in_contact[a] else 0.0,
-                                   -1 if in_contact[a] else 1, True) for a in range(model.nc)]
+            events = [
+                _delta_event(
+                    model, a, HYST if in_contact[a] else 0.0, -1 if in_contact[a] else 1, True
+                )
+                for a in range(model.nc)
+            ]
             dm = dminus.copy()
-            sol = solve_ivp(lambda t, y: model.evaluate(t, y, dm)[0], (t0, T), y, method=method,
-                            t_eval=grid[len(ys):], events=events or None, rtol=rtol, atol=atol,
-                            max_step=max_step)
+            sol = solve_ivp(
+                lambda t, y: model.evaluate(t, y, dm)[0],
+                (t0, T),
+                y,
+                method=method,
+                t_eval=grid[len(ys) :],
+                events=events or None,
+                rtol=rtol,
+                atol=atol,
+                max_step=max_step,
+            )
             if sol.status < 0:
                 raise RuntimeError(sol.message)
             nfev, njev = nfev + sol.nfev, njev + sol.njev
@@ -404,14 +502,22 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
     for j in model.ij:
         out[j + "_reaction"] = np.zeros(npts)
     for j in model.cj:
-        for key in ("ecc_x", "ecc_y", "delta", "penetration", "normal_force", "friction_force",
-                    "slip_velocity", "friction_state"):
+        for key in (
+            "ecc_x",
+            "ecc_y",
+            "delta",
+            "penetration",
+            "normal_force",
+            "friction_force",
+            "slip_velocity",
+            "friction_state",
+        ):
             out[f"{j}_{key}"] = np.zeros(npts)
     for p in range(npts):
         _, info = model.evaluate(grid[p], Y[p], ctx[p])
         out["slider_a"][p], out["crank_torque"][p] = info["qdd"][6], info["torque"]
         for r, j in enumerate(model.ij):
-            out[j + "_reaction"][p] = np.hypot(*info["lam"][2 * r:2 * r + 2])
+            out[j + "_reaction"][p] = np.hypot(*info["lam"][2 * r : 2 * r + 2])
         for j, ci in zip(model.cj, info["contacts"]):
             out[j + "_ecc_x"][p], out[j + "_ecc_y"][p] = ci["e_vec"]
             out[j + "_delta"][p], out[j + "_penetration"][p] = ci["delta"], max(ci["delta"], 0.0)
@@ -420,32 +526,54 @@ def simulate(clearance_joints=("B",), rpm=5000, revolutions=2, points_per_revolu
     if track_work:
         out["drive_work"] = Y[:, -1]
         out["energy"] = np.array([model.energy(yy) for yy in Y])
-    out["stats"] = dict(nfev=nfev, njev=njev, rhs_evals=n_eval, onsets=dict(zip(model.cj, onsets.tolist())),
-                        wall_time=wall, method=method, mode=mode)
+    out["stats"] = dict(
+        nfev=nfev,
+        njev=njev,
+        rhs_evals=n_eval,
+        onsets=dict(zip(model.cj, onsets.tolist())),
+        wall_time=wall,
+        method=method,
+        mode=mode,
+    )
     out["model"] = model
     return out
 
 
 # ----------------------------------------------------------------------------- self-checks
-MODEL_MD_IDEAL = dict(a_min=-19419.0, a_max=9696.0, v_peak=28.41, torque_max=138.52,
-                      O=(3004.0, 8253.0), A=(948.0, 6197.0), B=(434.0, 2719.0))
+MODEL_MD_IDEAL = dict(
+    a_min=-19419.0,
+    a_max=9696.0,
+    v_peak=28.41,
+    torque_max=138.52,
+    O=(3004.0, 8253.0),
+    A=(948.0, 6197.0),
+    B=(434.0, 2719.0),
+)
 
 
 def check_ideal(points_per_revolution=3600, assert_ok=True):
     """Ideal joints, 5000 rpm, no gravity: MODEL.md §6 numbers, closed form, torque sign by energy."""
-    r = simulate((), 5000, 1, points_per_revolution, mode="sharp", rtol=1e-11, atol=1e-13,
-                 track_work=True)
+    r = simulate(
+        (), 5000, 1, points_per_revolution, mode="sharp", rtol=1e-11, atol=1e-13, track_work=True
+    )
     cf = ideal_closed_form(np.radians(r["crank_angle"]), 5000 * np.pi / 30)
     dE = r["energy"] - r["energy"][0]  # kinetic energy change (no gravity, no contact)
-    res = dict(a_min=r["slider_a"].min(), a_max=r["slider_a"].max(),
-               v_peak=np.abs(r["slider_v"]).max(), torque_min=r["crank_torque"].min(),
-               torque_max=r["crank_torque"].max(),
-               **{j: (r[j + "_reaction"].min(), r[j + "_reaction"].max()) for j in "OAB"},
-               closed_form_err=dict(x=np.abs(cf["x"] - r["slider_x"]).max(),
-                                    v=np.abs(cf["v"] - r["slider_v"]).max(),
-                                    a=np.abs(cf["a"] - r["slider_a"]).max()),
-               work_minus_dKE=np.abs(r["drive_work"] - dE).max(),
-               work_plus_dKE=np.abs(r["drive_work"] + dE).max(), max_dKE=np.abs(dE).max())
+    res = dict(
+        a_min=r["slider_a"].min(),
+        a_max=r["slider_a"].max(),
+        v_peak=np.abs(r["slider_v"]).max(),
+        torque_min=r["crank_torque"].min(),
+        torque_max=r["crank_torque"].max(),
+        **{j: (r[j + "_reaction"].min(), r[j + "_reaction"].max()) for j in "OAB"},
+        closed_form_err=dict(
+            x=np.abs(cf["x"] - r["slider_x"]).max(),
+            v=np.abs(cf["v"] - r["slider_v"]).max(),
+            a=np.abs(cf["a"] - r["slider_a"]).max(),
+        ),
+        work_minus_dKE=np.abs(r["drive_work"] - dE).max(),
+        work_plus_dKE=np.abs(r["drive_work"] + dE).max(),
+        max_dKE=np.abs(dE).max(),
+    )
     if assert_ok:
         ref = MODEL_MD_IDEAL
         assert abs(res["a_min"] - ref["a_min"]) < 1 and abs(res["a_max"] - ref["a_max"]) < 1
@@ -460,16 +588,33 @@ def check_ideal(points_per_revolution=3600, assert_ok=True):
     return res
 
 
-def check_energy(mode="sharp", method=None, rtol=1e-10, revolutions=1.0, friction=None,
-                 assert_ok=True):
+def check_energy(
+    mode="sharp", method=None, rtol=1e-10, revolutions=1.0, friction=None, assert_ok=True
+):
     """Clearance at B, c = 0.5 mm, c_e = 1: E(t) - E(0) = drive work (frictionless);
     with friction the difference W - dE (dissipation) must be >= 0 and non-decreasing."""
-    r = simulate(("B",), 5000, revolutions, 360, mode=mode, method=method, rtol=rtol,
-                 atol=rtol * 1e-3, restitution=1.0, friction=friction, track_work=True)
+    r = simulate(
+        ("B",),
+        5000,
+        revolutions,
+        360,
+        mode=mode,
+        method=method,
+        rtol=rtol,
+        atol=rtol * 1e-3,
+        restitution=1.0,
+        friction=friction,
+        track_work=True,
+    )
     diss = r["drive_work"] - (r["energy"] - r["energy"][0])
-    res = dict(max_abs_error=np.abs(diss).max(), max_drive_work=np.abs(r["drive_work"]).max(),
-               final_dissipation=diss[-1], min_dissipation_increment=np.diff(diss).min(),
-               onsets=r["stats"]["onsets"]["B"], peak_normal_force=r["B_normal_force"].max())
+    res = dict(
+        max_abs_error=np.abs(diss).max(),
+        max_drive_work=np.abs(r["drive_work"]).max(),
+        final_dissipation=diss[-1],
+        min_dissipation_increment=np.diff(diss).min(),
+        onsets=r["stats"]["onsets"]["B"],
+        peak_normal_force=r["B_normal_force"].max(),
+    )
     if assert_ok:
         assert res["onsets"] > 5
         if friction is None:
@@ -482,41 +627,62 @@ def check_energy(mode="sharp", method=None, rtol=1e-10, revolutions=1.0, frictio
 def check_small_clearance(clearance=1e-6, mode="sharp", revolutions=2, rtol=1e-8, assert_ok=True):
     """Clearance at B of 1 µm: slider motion and torque approach the ideal ones (2nd revolution)."""
     ide = simulate((), 5000, revolutions, 360, mode="sharp", rtol=1e-11, atol=1e-13)
-    r = simulate(("B",), 5000, revolutions, 360, mode=mode, rtol=rtol, atol=rtol * 1e-3,
-                 clearance=clearance)
+    r = simulate(
+        ("B",), 5000, revolutions, 360, mode=mode, rtol=rtol, atol=rtol * 1e-3, clearance=clearance
+    )
     sel = r["t"] >= r["t"][-1] / revolutions * (revolutions - 1)
 
     def rms(x):
         return np.sqrt(np.mean(x[sel] ** 2))
 
-    res = dict(max_dx=np.abs(r["slider_x"] - ide["slider_x"])[sel].max(),
-               max_dv=np.abs(r["slider_v"] - ide["slider_v"])[sel].max(),
-               rel_rms_da=rms(r["slider_a"] - ide["slider_a"]) / rms(ide["slider_a"]),
-               rel_rms_dtorque=rms(r["crank_torque"] - ide["crank_torque"]) / rms(ide["crank_torque"]),
-               rel_rms_dforce=rms(r["B_normal_force"] - ide["B_reaction"]) / rms(ide["B_reaction"]),
-               max_penetration=r["B_penetration"].max(), onsets=r["stats"]["onsets"]["B"])
+    res = dict(
+        max_dx=np.abs(r["slider_x"] - ide["slider_x"])[sel].max(),
+        max_dv=np.abs(r["slider_v"] - ide["slider_v"])[sel].max(),
+        rel_rms_da=rms(r["slider_a"] - ide["slider_a"]) / rms(ide["slider_a"]),
+        rel_rms_dtorque=rms(r["crank_torque"] - ide["crank_torque"]) / rms(ide["crank_torque"]),
+        rel_rms_dforce=rms(r["B_normal_force"] - ide["B_reaction"]) / rms(ide["B_reaction"]),
+        max_penetration=r["B_penetration"].max(),
+        onsets=r["stats"]["onsets"]["B"],
+    )
     if assert_ok:
         assert res["max_dx"] < 10 * clearance + 5e-6 and res["rel_rms_dtorque"] < 0.05, res
     return res
 
 
-def check_smooth_vs_sharp(t_end=2e-3, window=0.5e-3, joints=("B",), rtol=1e-11,
-                          smooth_method="DOP853", widths=(1e-7,), assert_ok=True):
+def check_smooth_vs_sharp(
+    t_end=2e-3,
+    window=0.5e-3,
+    joints=("B",),
+    rtol=1e-11,
+    smooth_method="DOP853",
+    widths=(1e-7,),
+    assert_ok=True,
+):
     """Max |e_smooth - e_sharp| (µm) of each joint's eccentricity vector per time window, at tight
     tolerances, for each smoothing width (w_delta = w_m = width, w_factor = 1e4 * width)."""
     rev = t_end * 5000 / 60
-    kw = dict(rpm=5000, revolutions=rev, points_per_revolution=round(t_end / 2e-6) / rev,
-              rtol=rtol, atol=rtol * 1e-3)
+    kw = dict(
+        rpm=5000,
+        revolutions=rev,
+        points_per_revolution=round(t_end / 2e-6) / rev,
+        rtol=rtol,
+        atol=rtol * 1e-3,
+    )
     sharp = simulate(joints, mode="sharp", **kw)
     t, edges = sharp["t"], np.arange(0.0, t_end + 1e-12, window)
     wins = list(zip(edges[:-1], edges[1:]))
-    res = dict(windows_ms=[(a * 1e3, b * 1e3) for a, b in wins], sharp_onsets=sharp["stats"]["onsets"])
+    res = dict(
+        windows_ms=[(a * 1e3, b * 1e3) for a, b in wins], sharp_onsets=sharp["stats"]["onsets"]
+    )
     for w in widths:
-        sm = simulate(joints, mode="smooth", method=smooth_method, w_delta=w, w_m=w,
-                      w_factor=1e4 * w, **kw)
+        sm = simulate(
+            joints, mode="smooth", method=smooth_method, w_delta=w, w_m=w, w_factor=1e4 * w, **kw
+        )
         res[w] = dict(onsets=sm["stats"]["onsets"])
         for j in joints:
-            d = 1e6 * np.hypot(sm[j + "_ecc_x"] - sharp[j + "_ecc_x"], sm[j + "_ecc_y"] - sharp[j + "_ecc_y"])
+            d = 1e6 * np.hypot(
+                sm[j + "_ecc_x"] - sharp[j + "_ecc_x"], sm[j + "_ecc_y"] - sharp[j + "_ecc_y"]
+            )
             res[w][j + "_max_diff_um"] = [d[(t > a) & (t <= b)].max() for a, b in wins]
     if assert_ok and 1e-7 in widths:
         worst = max(v[0] for k, v in res[1e-7].items() if k.endswith("_um"))
@@ -535,11 +701,16 @@ def timings(joint_sets=(("B",), ("O", "A", "B")), methods=(("smooth", "Radau"),)
 
 
 if __name__ == "__main__":
-    for name, fn in [("ideal", check_ideal), ("energy sharp", check_energy),
-                     ("energy smooth Radau", lambda: check_energy("smooth", "Radau", 1e-8)),
-                     ("energy sharp, Coulomb mu=0.1", lambda: check_energy(friction=("coulomb", 0.1, 1e-4))),
-                     ("small clearance", check_small_clearance),
-                     ("smooth vs sharp", lambda: check_smooth_vs_sharp(widths=(1e-7, 1e-8, 1e-9)))]:
+    for name, fn in [
+        ("ideal", check_ideal),
+        ("energy sharp", check_energy),
+        ("energy smooth Radau", lambda: check_energy("smooth", "Radau", 1e-8)),
+        ("energy sharp, Coulomb mu=0.1", lambda: check_energy(friction=("coulomb", 0.1, 1e-4))),
+        ("small clearance", check_small_clearance),
+        ("smooth vs sharp", lambda: check_smooth_vs_sharp(widths=(1e-7, 1e-8, 1e-9))),
+    ]:
         print(name, fn())
-    for key, s in timings(methods=(("smooth", "Radau"), ("smooth", "DOP853"), ("sharp", "DOP853"))).items():
+    for key, s in timings(
+        methods=(("smooth", "Radau"), ("smooth", "DOP853"), ("sharp", "DOP853"))
+    ).items():
         print(key, s)

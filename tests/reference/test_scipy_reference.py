@@ -1,4 +1,5 @@
 """Self-checks of the independent SciPy reference (tests/reference/scipy_slider_crank.py)."""
+
 import pytest
 
 from .scipy_slider_crank import (
@@ -12,10 +13,11 @@ from .scipy_slider_crank import (
 
 def test_closed_form_dead_centres():
     import numpy as np
+
     w = 5000 * np.pi / 30
     cf = ideal_closed_form(np.array([0.0, np.pi]), w)
     assert np.allclose(cf["x"], [0.17, 0.07]) and np.allclose(cf["v"], 0.0, atol=1e-12)
-    assert np.isclose(cf["a"][0], -w**2 * (0.05 + 0.05**2 / 0.12))
+    assert np.isclose(cf["a"][0], -(w**2) * (0.05 + 0.05**2 / 0.12))
 
 
 def test_ideal_matches_model_md():
