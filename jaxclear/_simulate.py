@@ -181,14 +181,16 @@ def make_adjoint(adjoint, traced_tree=None) -> diffrax.AbstractAdjoint:
 
 
 @eqx.filter_jit
-def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig, adjoint, progress: bool):
+def _simulate_core(
+    mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig, adjoint, progress: bool, track_extremes: bool
+):
     assembled_ok = jnp.asarray(True)
     if y0 is None:
         q0, qd0, pos_res, _ = assemble_state(mechanism, t0)
         assembled_ok = pos_res < ASSEMBLY_TOLERANCE
         y0 = initial_state(mechanism, q0, qd0)
     input_error = _input_error(mechanism, y0, assembled_ok)
-    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=True)
+    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=track_extremes)
     # IMEX methods run as AffineKenCarp (closed-form stage solves, jaxclear/_imex.py) on the full
     # vector field, with the stiff part passed to the solver.
     terms = diffrax.ODETerm(_FULL)
@@ -209,7 +211,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig,
     try:
         sol = diffrax.diffeqsolve(
             terms,
-            ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float)),
+            ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float)) if track_extremes else solver,
             t0,
             t1,
             config.dt0,
@@ -248,7 +250,7 @@ def _simulate_core(mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig,
         constraint_violation=out["constraint_violation"],
         velocity_violation=out["velocity_violation"],
         clearance=out["clearance"],
-        extremes=sol.solver_state[1],
+        extremes=sol.solver_state[1] if track_extremes else None,  # pyright: ignore[reportOptionalSubscript]
         num_steps=sol.stats["num_steps"],
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],
@@ -308,6 +310,7 @@ def simulate(
     y0=None,
     adjoint: "str | diffrax.AbstractAdjoint" = "auto",
     statistics_start: float | None = None,
+    extremes: bool = True,
     progress: bool = False,
     throw: bool = True,
 ) -> Trajectory:
@@ -347,6 +350,10 @@ def simulate(
         statistics_start: start time, s, of the window over which ``Trajectory.extremes`` (peak
             forces, penetrations and accelerations, torque extremes and RMS) are taken from the
             solver's steps; default ``t0``. Use it to leave out the start-up revolutions.
+        extremes: track ``Trajectory.extremes`` (two evaluations of forces and accelerations
+            per step, at its midpoint and end: +25–40 % run time on the benchmark slider–crank,
+            benchmarks/README.md). ``False`` skips it (``Trajectory.extremes`` is then ``None``),
+            e.g. for fits that need only the trajectory.
         progress: show a progress bar (tqdm) over simulated time.
         throw: eager calls only: raise ``SimulationError`` if the solve fails (else inspect
             ``Trajectory.result``).
@@ -387,6 +394,7 @@ def simulate(
         config,
         make_adjoint(adjoint, (mechanism, y0)),
         progress,
+        extremes,
     )
     if not traced:
         raise_for_failure(traj, config if throw else None)
@@ -461,6 +469,7 @@ def simulate_batch(
     solver: "str | SolverConfig" = "auto",
     adjoint: "str | diffrax.AbstractAdjoint" = "auto",
     statistics_start: float | None = None,
+    extremes: bool = True,
 ) -> Trajectory:
     """Simulate many variants of a mechanism in one vectorised solve: ``jax.vmap`` of ``simulate``.
 
@@ -470,7 +479,7 @@ def simulate_batch(
     Args:
         build: ``build(p) -> Mechanism`` for one member's parameters ``p`` (a pytree of arrays).
         parameters: pytree whose leaves have a leading batch axis.
-        t1, t0, ts, num_points, solver, adjoint, statistics_start: as in ``simulate``.
+        t1, t0, ts, num_points, solver, adjoint, statistics_start, extremes: as in ``simulate``.
 
     Returns:
         A batched ``Trajectory``. Members whose solve fails do not raise: check ``traj.succeeded``
@@ -489,7 +498,7 @@ def simulate_batch(
     def one(p):
         return simulate(
             build(p), t1, t0=t0, ts=ts, num_points=num_points, solver=config, adjoint=adjoint,
-            statistics_start=statistics_start, throw=False,
+            statistics_start=statistics_start, extremes=extremes, throw=False,
         )
 
     traj = eqx.filter_vmap(one)(parameters)
