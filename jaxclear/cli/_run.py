@@ -42,13 +42,14 @@ Defaults: slider-crank at 5000 rpm with clearance joints O, A, B (c = 0.5 mm, hy
 LuGre friction), 2 revolutions, 360 points per revolution, no gravity, solver 'auto' (imex with
 LuGre friction, else fast; measured fastest here). '--clearance-joints none' gives ideal joints.
 
-Start-up: by default each journal starts on its bearing wall, pushed along the reaction of the
-ideal joint (--start wall), and the first revolution is left out of the plots and statistics
-(--skip-revolutions 1). Why: a centred journal flies free across the clearance and hits the wall
-with a start-up impact many times larger than anything in the running motion; that transient set
-the y-ranges of every plot and the peaks of the statistics. A wall start removes most of it, and
-skipping the first revolution removes what is left. '--start centred --skip-revolutions 0' gives
-the raw start (as measured data may begin)."""
+Start-up: by default journals start centred (--start centred) and the first revolution is left
+out of the plots and statistics (--skip-revolutions 1). Why: a centred journal flies free across
+the clearance and hits the wall with a start-up impact about ten times larger than anything in the
+running motion; that transient would set the y-ranges of every plot and the peaks of the
+statistics. '--start wall' puts each journal on its wall along the ideal joint's reaction instead;
+no impact has happened then, so the damped contact laws work with the minimum impact velocity and
+the contact stays heavily damped while it lasts (about 6x the solver steps of the default run; see
+docs/cli.md, "Start-up"). '--skip-revolutions 0' keeps every revolution."""
 
 EPILOG = f"""\
 config file (TOML; every key optional; command-line options override it):

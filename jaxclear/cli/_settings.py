@@ -216,9 +216,10 @@ SETTINGS: tuple[Setting, ...] = (
         "--skip-revolutions", "nonnegative",
     ),
     Setting(
-        "simulation", "start", str, "wall", "",
-        "initial journal positions: wall (on the bearing wall, pushed along the ideal joint's reaction: "
-        "jaxclear.wall_start) or centred (eccentricity 0, as measured data may begin)",
+        "simulation", "start", str, "centred", "",
+        "initial journal positions: centred (eccentricity 0, as measured data may begin) or wall (on the "
+        "bearing wall, pushed along the ideal joint's reaction: jaxclear.wall_start; no impact has happened, "
+        "so the damped contact laws see the minimum impact velocity and damp heavily while contact lasts)",
         "--start", choices=STARTS,
     ),
     # [solver]
