@@ -1,4 +1,4 @@
-"""Planar kinematics of points on bodies (MODEL.md §1).
+"""Planar kinematics of points on bodies (docs/model.md §1).
 
 Shared by the model (ideal joints' constraint functions, applied forces, springs) and the dynamics
 (clearance joints), so it lives beside both rather than in either.

@@ -141,7 +141,7 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
                 )
         elif isinstance(joint, TranslationalJoint):
             # Constraint rows (relative angle, normal offset); generalised constraint force on
-            # body_i is -Phi_q^T lambda (MODEL.md §1), so the guide acts on the slider with -lambda.
+            # body_i is -Phi_q^T lambda (docs/model.md §1), so the guide acts on the slider with -lambda.
             cols += [
                 Column(
                     f"{joint.name}_moment",
@@ -266,7 +266,7 @@ def finite_rows(traj):
 
 
 def mode_shares(traj, continuous_fraction: float, reference_period: float | None = None) -> dict:
-    """Time share of each combination of contact modes over the saved instants (MODEL.md §7)."""
+    """Time share of each combination of contact modes over the saved instants (docs/model.md §7)."""
     from .analysis import combination_shares, trajectory_modes
 
     modes = trajectory_modes(traj, continuous_fraction, reference_period)

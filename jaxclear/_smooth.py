@@ -1,4 +1,4 @@
-"""Smooth, gradient-safe primitives for non-smooth contact quantities (MODEL.md §5) [ours].
+"""Smooth, gradient-safe primitives for non-smooth contact quantities (docs/model.md §5) [ours].
 
 Every function here is C¹, finite, and has finite gradients everywhere, including the kinks of
 the functions they regularise (zero penetration, zero eccentricity, zero slip). Non-smooth points

@@ -51,9 +51,9 @@ class SolverConfig(eqx.Module):
             1030/1827/7423 instead of 1694/2512/12239); 0.2/0.4, 0.1/0.5, 0.2/0.6 and 0/0.7 were
             within ±5 % of 0.1/0.7 in total steps. Indicative only: the same run's step count moves
             by up to ~30 % with rounding-level changes (e.g. case a: 5449 steps, 7185 with XLA's
-            fusion emitters off), because the contact sequence is sensitive (MODEL.md §5b).
+            fusion emitters off), because the contact sequence is sensitive (docs/model.md §5b).
         newton_rtol, newton_atol: tolerances of the implicit stage equations (chord iteration).
-            Loose values (≈√rtol) avoid step-size collapse at impacts (MODEL.md §5b).
+            Loose values (≈√rtol) avoid step-size collapse at impacts (docs/model.md §5b).
         memory_speed: for exponential methods, which integrate the impact memory as the offset
             u = m − δ̇: reference speed of those rows, m/s, controlled with absolute tolerance
             ``atol + rtol * memory_speed``. u is ~0 in free flight and its error is an error in

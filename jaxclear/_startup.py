@@ -1,6 +1,6 @@
 """Start-up of clearance joints: journals on their bearing walls instead of centred [ours].
 
-MODEL.md §1 starts every journal centred in its bearing (eccentricity 0). A centred journal flies
+docs/model.md §1 starts every journal centred in its bearing (eccentricity 0). A centred journal flies
 free across the clearance and strikes the wall at the speed the load has built up meanwhile: a
 start-up impact much harder than any in the running motion, which then dominates plots and peak
 statistics. A journal that runs loaded sits on the side of the bearing the load pushes it to;
@@ -38,7 +38,7 @@ def wall_start(mechanism: Mechanism, t0: float = 0.0, *, num_points: int = 2) ->
     between the same bodies and points, bearing body first) the joint transmits a force F from the
     journal to the bearing at t0. In a clearance joint the journal transmits force only by pressing
     on the wall, along the unit vector n from the bearing centre to the contact point, with
-    F = F_N n (MODEL.md §2: the contact force on the bearing is +F_N n). So the journal starts at
+    F = F_N n (docs/model.md §2: the contact force on the bearing is +F_N n). So the journal starts at
     eccentricity e = c n, n = F/|F|: on the wall, not yet penetrating, with the ideal joint's
     velocities. A joint that carries no force at t0 (|F| = 0) stays centred.
 

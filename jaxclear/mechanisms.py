@@ -1,4 +1,4 @@
-"""Benchmark mechanisms: the slider–crank of MODEL.md §6 and a four-bar linkage."""
+"""Benchmark mechanisms: the slider–crank of docs/model.md §6 and a four-bar linkage."""
 
 import jax.numpy as jnp
 from jaxtyping import ArrayLike
@@ -36,7 +36,7 @@ def slider_crank(
     clearance_joints=(),
     **clearance_options,
 ) -> Mechanism:
-    """The benchmark slider–crank (MODEL.md §6): crank O–A, connecting rod A–B, slider at B.
+    """The benchmark slider–crank (docs/model.md §6): crank O–A, connecting rod A–B, slider at B.
 
     Crank pivot O at the origin, slider on the global x axis through O, crank angle 0 at outer dead
     centre (slider at x = r + l), centres of mass at link mid-points, crank driven at constant speed.

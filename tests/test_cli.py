@@ -117,7 +117,7 @@ def test_csv_columns_and_values(ideal_run):
     expected = closed_form_slider_x(np.radians(cols["crank_angle"]))
     np.testing.assert_allclose(cols["slider_x"], expected, atol=POSITION_TOLERANCE)
     assert cols["slider_x"][0] == pytest.approx(CRANK + ROD)
-    # Outer dead centre: slider at rest, acceleration −rω²(1 + r/l) (MODEL.md §6: −19 419 m/s²).
+    # Outer dead centre: slider at rest, acceleration −rω²(1 + r/l) (docs/model.md §6: −19 419 m/s²).
     omega = rpm * 2 * math.pi / 60
     assert cols["slider_v"][0] == pytest.approx(0.0, abs=1e-6)
     assert cols["slider_a"][0] == pytest.approx(-CRANK * omega**2 * (1 + CRANK / ROD), rel=1e-4)

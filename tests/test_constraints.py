@@ -1,5 +1,5 @@
 """Constraint Jacobian Φ_q and acceleration right-hand side γ against finite differences of Φ,
-and constraint drift over a long run (MODEL.md §1)."""
+and constraint drift over a long run (docs/model.md §1)."""
 
 import jax.numpy as jnp
 import numpy as np

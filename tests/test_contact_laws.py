@@ -1,4 +1,4 @@
-"""Contract and law-specific checks of the normal contact force laws (MODEL.md §3)."""
+"""Contract and law-specific checks of the normal contact force laws (docs/model.md §3)."""
 
 import math
 
@@ -25,7 +25,7 @@ from jaxclear.contact import (
     contact_law_from_name,
 )
 
-# Benchmark joint of MODEL.md §6: R_B = 10 mm, R_J = 9.5 mm, steel, pin length 10 mm.
+# Benchmark joint of docs/model.md §6: R_B = 10 mm, R_J = 9.5 mm, steel, pin length 10 mm.
 GEOMETRY = ContactGeometry(0.01, 0.0095)
 SMOOTHING = Smoothing()
 # Near-sharp widths for checks of exponents and constants, where the default 0.1 µm penetration
@@ -47,7 +47,7 @@ TANGENTIAL_RATES = [-1.0, 0.0, 1.0]
 MONOTONE_RTOL = 1e-12
 # jit/vmap vs eager: same operations, different fusion; float64 round-off only.
 JIT_RTOL = 1e-12
-# Hertz K quoted to 3 significant figures in MODEL.md §3.
+# Hertz K quoted to 3 significant figures in docs/model.md §3.
 HERTZ_QUOTED_RTOL = 1e-3
 # Exact algebra (same formula, different association).
 ALGEBRA_RTOL = 1e-10
@@ -204,7 +204,7 @@ def test_hertz_stiffness_of_benchmark_joint():
     )
 
 
-# χ̂(c_e) as listed in MODEL.md §3, written out independently of the package.
+# χ̂(c_e) as listed in docs/model.md §3, written out independently of the package.
 HYSTERESIS = {
     "lankarani-nikravesh": lambda c: 3.0 * (1.0 - c**2) / 4.0,
     "hunt-crossley": lambda c: 3.0 * (1.0 - c) / 2.0,
@@ -337,7 +337,7 @@ def test_elastic_foundation_closed_form_and_layer_ratio():
     k_ef = (1 - poisson) * young / ((1 + poisson) * (1 - 2 * poisson))
     radius, h, c = 0.01, 0.01, CLEARANCE
     layer = k_ef * radius * h * (4 / 3) * math.sqrt(2 / c) / float(GEOMETRY.hertz_stiffness)
-    assert 0.27 < h / layer < 0.29  # MODEL.md §3: h/L ≈ 0.28 for the benchmark joint
+    assert 0.27 < h / layer < 0.29  # docs/model.md §3: h/L ≈ 0.28 for the benchmark joint
     for delta in (1e-6, 3e-5):
         e = c + delta
         theta = math.acos(c / e)

@@ -1,4 +1,4 @@
-"""Discretised elastic-foundation laws converge to the closed form (MODEL.md §3).
+"""Discretised elastic-foundation laws converge to the closed form (docs/model.md §3).
 
 Both the element sum (:class:`ElasticFoundationDiscrete`, midpoint rule) and the paper's hybrid law
 with damping off (c_e = 1, so each element force is K_i δ_i) must approach

@@ -1,4 +1,4 @@
-"""Contract and law-specific checks of the friction laws (MODEL.md §4)."""
+"""Contract and law-specific checks of the friction laws (docs/model.md §4)."""
 
 import math
 

@@ -11,7 +11,7 @@ import pytest
 
 from jaxclear._lawson import LawsonTsit5
 
-RATE = 1e6  # 1/s: the impact-memory relaxation rate k_m of the benchmark (MODEL.md §5)
+RATE = 1e6  # 1/s: the impact-memory relaxation rate k_m of the benchmark (docs/model.md §5)
 
 
 def oscillator_with_decay(t, y, args):

@@ -3,7 +3,7 @@
 The sharp reference latches the impact velocity at contact events and uses max(δ, 0) exactly. As
 the smoothing widths shrink and the tolerance tightens, jaxclear's smooth formulation must approach
 it. Trajectories are compared pointwise only over the first milliseconds: the impact sequence
-amplifies differences (MODEL.md §5b).
+amplifies differences (docs/model.md §5b).
 """
 
 import jax.numpy as jnp

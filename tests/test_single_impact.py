@@ -32,7 +32,7 @@ SHARP = Smoothing(penetration_width=1e-12, force_width=1e-9)
 # diffrax Tsit5 at rtol 1e-11 and SciPy DOP853 at rtol 1e-12: both resolve exit speeds to ~1e-9;
 # the 1e-12 m smoothing perturbs them by < 1e-8.
 REFERENCE_RTOL = 1e-6
-# MODEL.md §3 quotes L-N's effective restitution to 3 decimals (0.913 at c_e = 0.9, 0.725 at 0.5).
+# docs/model.md §3 quotes L-N's effective restitution to 3 decimals (0.913 at c_e = 0.9, 0.725 at 0.5).
 QUOTED_ATOL = 5e-3
 # Default smoothing shifts δ by w/2 = 50 nm against a 51 µm peak: effect on e_eff well below 1e-3.
 DEFAULT_SMOOTHING_ATOL = 1e-3

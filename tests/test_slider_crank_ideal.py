@@ -1,7 +1,7 @@
-"""Benchmark slider–crank with ideal joints (MODEL.md §6) against closed-form kinematics and kinetics.
+"""Benchmark slider–crank with ideal joints (docs/model.md §6) against closed-form kinematics and kinetics.
 
 Everything the package output is compared with is computed here in NumPy from the geometry of
-MODEL.md §6, independently of ``jaxclear``: the slider position x_B = r cos θ + √(l² − r² sin² θ)
+docs/model.md §6, independently of ``jaxclear``: the slider position x_B = r cos θ + √(l² − r² sin² θ)
 and its exact time derivatives, the coordinates of every body, the Newton–Euler joint reactions
 and the input torque from the kinetic-energy balance τ ω = dT/dt.
 """
@@ -13,7 +13,7 @@ from helpers import NUM_POINTS
 import jaxclear
 from jaxclear.mechanisms import slider_crank
 
-# MODEL.md §6 geometry and inertia (crank, rod, slider).
+# docs/model.md §6 geometry and inertia (crank, rod, slider).
 R, L = 0.05, 0.12  # m
 MASS = (0.30, 0.21, 0.14)  # kg
 INERTIA = (1.0e-4, 2.5e-4, 1.0e-4)  # kg m²
@@ -255,7 +255,7 @@ def test_joint_reactions_match_newton_euler(traj, reference):
 
 
 # --------------------------------------------------------------------------------------------
-# MODEL.md §6 table
+# docs/model.md §6 table
 # --------------------------------------------------------------------------------------------
 MODEL_TABLE = {
     # name: (reference value, half a unit of its last printed digit)
@@ -297,7 +297,7 @@ def _extremes(traj):
 def test_model_table_extremes(traj):
     found = _extremes(traj)
     for name, (ref, half_unit) in MODEL_TABLE.items():
-        print(f"{name}: {found[name]:.6g} (MODEL.md {ref:g})")
+        print(f"{name}: {found[name]:.6g} (docs/model.md {ref:g})")
     for name, (ref, half_unit) in MODEL_TABLE.items():
         assert abs(found[name] - ref) <= half_unit + EXTREME_RTOL * abs(ref), name
 

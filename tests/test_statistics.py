@@ -67,7 +67,7 @@ def test_named_statistics(runs):
     assert float(stats["statistics_duration"]) == pytest.approx(PERIOD, rel=1e-12)
 
 
-IDEAL_TORQUE_EXTREME = 138.52  # N m, MODEL.md §6 (computed independently), 5000 rpm, no gravity
+IDEAL_TORQUE_EXTREME = 138.52  # N m, docs/model.md §6 (computed independently), 5000 rpm, no gravity
 IDEAL_SLIDER_ACCELERATION = 19419.0  # m/s², peak |ẍ| at outer dead centre, same source
 IDEAL_RTOL = 5e-3
 """Step ends of the smooth ideal run are ~6° of crank angle apart, so the extremes between them
@@ -101,7 +101,7 @@ def test_statistics_window():
 
 BATCH_RTOL = 1e-9
 """jit(vmap) vs eager on the ideal mechanism: the same arithmetic compiled apart. (With contact,
-rounding-level differences grow through the impacts, MODEL.md §5b: two clearances' batch and
+rounding-level differences grow through the impacts, docs/model.md §5b: two clearances' batch and
 eager runs took 1654 vs 1658 steps over a quarter period and their torque minima parted by 1.3 %,
 on the saved grids as much as in the statistics.)"""
 

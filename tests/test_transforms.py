@@ -158,7 +158,7 @@ def test_no_recompile_when_parameters_change(eager, batched):
 
 
 # --------------------------------------------------------------------------------------------
-# grad through simulate vs finite differences (short horizons, MODEL.md §5b)
+# grad through simulate vs finite differences (short horizons, docs/model.md §5b)
 # --------------------------------------------------------------------------------------------
 STEPS_PER_REVOLUTION = 400
 FIXED_STEP = jaxclear.SolverConfig(

@@ -1,4 +1,4 @@
-"""Contact modes of clearance joints: free flight, impact, continuous contact (MODEL.md §7) [ours].
+"""Contact modes of clearance joints: free flight, impact, continuous contact (docs/model.md §7) [ours].
 
 A saved instant is *in contact* when the penetration is positive. Maximal runs of consecutive
 contact instants are *continuous contact* when the run lasts at least ``continuous_fraction`` of
@@ -58,7 +58,7 @@ def trajectory_modes(traj, continuous_fraction: float = DEFAULT_CONTINUOUS_FRACT
 def combination_shares(modes: dict) -> dict:
     """Time share of each combination of joint modes, e.g. ``{"O:free A:impact B:continuous": 0.12}``.
 
-    With three joints there are 3³ = 27 possible combinations (MODEL.md §7).
+    With three joints there are 3³ = 27 possible combinations (docs/model.md §7).
     """
     names = list(modes)
     if not names:

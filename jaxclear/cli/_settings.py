@@ -30,7 +30,7 @@ one described in the config file (``custom``)."""
 
 MAX_RPM = 1e5
 """Upper bound of ``rpm`` (rev/min). Linkage studies with clearance joints run at 200-6000 rpm
-(MODEL.md §6); 1e5 rpm is 17 times the top of that range and puts accelerations, which grow with
+(docs/model.md §6); 1e5 rpm is 17 times the top of that range and puts accelerations, which grow with
 the square of the speed, 400 times above the 5000 rpm benchmark's. A larger value is almost surely
 a unit slip (rad/s, rev/h) and would only make the solver grind."""
 
@@ -127,7 +127,7 @@ _rpm_default = {**_library_defaults("rpm")}
 _gravity_default = {**_library_defaults("gravity"), "custom": False}
 
 SETTINGS: tuple[Setting, ...] = (
-    # [mechanism]: which mechanism, its speed and gravity; the benchmarks' dimensions (MODEL.md §6)
+    # [mechanism]: which mechanism, its speed and gravity; the benchmarks' dimensions (docs/model.md §6)
     Setting(
         "mechanism", "name", str, None, "",
         "slider_crank, four_bar, or custom (the mechanism described by [bodies], [joints], [driver], ...); "
@@ -162,7 +162,7 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("mechanism", "crank_inertia", float, _library_defaults("crank_inertia"), "kg m^2", "crank moment of inertia about its centre of mass", None, "positive", mechanisms=SC),
     Setting("mechanism", "rod_inertia", float, _library_defaults("rod_inertia"), "kg m^2", "rod moment of inertia about its centre of mass", None, "positive", mechanisms=SC),
     Setting("mechanism", "slider_inertia", float, _library_defaults("slider_inertia"), "kg m^2", "slider moment of inertia", None, "positive", mechanisms=SC),
-    # [clearance]: revolute clearance joints, MODEL.md §2-§5; [clearance.<joint>] overrides per joint
+    # [clearance]: revolute clearance joints, docs/model.md §2-§5; [clearance.<joint>] overrides per joint
     Setting(
         "clearance", "joints", str, {"slider_crank": "O,A,B", "four_bar": "none", "custom": "none"}, "",
         "revolute joints with clearance, comma-separated (slider_crank: O, A, B; four_bar: O2, A, B, O4; "

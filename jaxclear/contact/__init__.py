@@ -1,4 +1,4 @@
-"""Normal contact force laws of a revolute clearance joint (MODEL.md §3)."""
+"""Normal contact force laws of a revolute clearance joint (docs/model.md §3)."""
 
 from ._base import AbstractContactLaw as AbstractContactLaw
 from ._base import ContactGeometry as ContactGeometry

@@ -1,4 +1,4 @@
-"""Shared contract of the normal contact force laws (MODEL.md §3).
+"""Shared contract of the normal contact force laws (docs/model.md §3).
 
 A law is an ``eqx.Module`` whose parameters (restitution, exponents, element counts, ...) are its
 fields. The joint's geometry and materials come from the clearance joint through
@@ -26,7 +26,7 @@ def _array(x):
 
 
 class Smoothing(eqx.Module):
-    """Regularisation widths of the smooth formulation (MODEL.md §5) [ours].
+    """Regularisation widths of the smooth formulation (docs/model.md §5) [ours].
 
     Attributes:
         penetration_width: width of the smooth positive part of the penetration, m.
@@ -88,7 +88,7 @@ class ContactGeometry(eqx.Module):
 
     @property
     def hertz_stiffness(self) -> Float[Array, ""]:
-        """K = 4/(3(σ_B + σ_J)) √R*, N/m^1.5 (MODEL.md §3, Hertz)."""
+        """K = 4/(3(σ_B + σ_J)) √R*, N/m^1.5 (docs/model.md §3, Hertz)."""
         return 4.0 / (3.0 * self.compliance_sum) * jnp.sqrt(self.effective_radius)
 
 

@@ -1,4 +1,4 @@
-"""Cylindrical (conformal, pin-in-hole) contact laws (MODEL.md §3) [lit].
+"""Cylindrical (conformal, pin-in-hole) contact laws (docs/model.md §3) [lit].
 
 Both depend on the pin length h (``geometry.length``), the radial clearance ΔR = R_B − R_J
 (``geometry.clearance``) and the combined modulus E* (1/E* = σ_B + σ_J).
@@ -131,7 +131,7 @@ class Liu2007(AbstractLNDampedElasticLaw):
     """Liu, Zhang & Yang (2007) conformal cylindrical contact [lit], with L-N damping [ours].
 
     ``F_N = (π/2) E* h δ √(δ / (2(ΔR + δ))) · (1 + 3(1 − c_e²)/4 · δ̇/δ̇⁻)``. The elastic part is
-    Liu's; it grows as δ^1.5 for δ ≪ ΔR and as δ for δ ≫ ΔR. MODEL.md gives it without damping;
+    Liu's; it grows as δ^1.5 for δ ≪ ΔR and as δ for δ ≫ ΔR. The literature gives it without damping;
     the Lankarani–Nikravesh factor is our addition [ours] (``restitution=1`` recovers the
     published elastic law).
 

@@ -1,4 +1,4 @@
-"""Damped point contact laws ``F_N = K δ^n (1 + χ̂ δ̇/δ̇⁻)`` (MODEL.md §3) [lit].
+"""Damped point contact laws ``F_N = K δ^n (1 + χ̂ δ̇/δ̇⁻)`` (docs/model.md §3) [lit].
 
 All five laws share one force helper and differ only in the hysteresis factor χ̂(c_e), a
 function of the coefficient of restitution c_e:
@@ -11,7 +11,7 @@ function of the coefficient of restitution c_e:
 
 The factor ``1 + χ̂ δ̇/δ̇⁻`` is negative late in the restitution phase of strongly damped
 contacts (the "sticky" tail of these laws); it is clamped at zero with the C¹ clamp
-:func:`clamp_nonnegative` so that ``F_N >= 0`` (MODEL.md §3: force clamped >= 0).
+:func:`clamp_nonnegative` so that ``F_N >= 0`` (docs/model.md §3: force clamped >= 0).
 """
 
 import abc
@@ -108,8 +108,8 @@ class AbstractLNDampedElasticLaw(AbstractContactLaw):
 
     Subclasses give the elastic part ``elastic_force(δ_s, geometry)`` and a ``restitution`` field;
     the Lankarani–Nikravesh factor, the smooth positive penetration δ_s and the clamp are shared.
-    Used by the cylindrical and elastic-foundation laws (their damping is [ours] where MODEL.md gives
-    the law without it; ``restitution=1`` recovers the elastic law).
+    Used by the cylindrical and elastic-foundation laws (their damping is [ours] where the literature gives
+    the law without it, docs/model.md §3; ``restitution=1`` recovers the elastic law).
     """
 
     restitution: eqx.AbstractVar[Float[Array, ""]]

@@ -1,4 +1,4 @@
-"""Elastic foundation model (EFM) of a pin in a bushing (MODEL.md §3) [lit; closed form ours].
+"""Elastic foundation model (EFM) of a pin in a bushing (docs/model.md §3) [lit; closed form ours].
 
 A layer of thickness L on the bearing carries the pressure ``p = K_EF δ(ψ)/L`` with the layer
 modulus ``K_EF = (1 − ν)E/((1 + ν)(1 − 2ν))``. With eccentricity ``e = c + δ`` the local

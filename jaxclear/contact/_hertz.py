@@ -1,4 +1,4 @@
-"""Hertz point contact law (MODEL.md §3) and the stiffness helpers shared by the contact laws.
+"""Hertz point contact law (docs/model.md §3) and the stiffness helpers shared by the contact laws.
 
 Parameter checks come from ``jaxclear._checks`` (skipped for traced values inside ``jit``/``vmap``).
 """
@@ -31,7 +31,7 @@ def resolve_stiffness(
 
 
 class Hertz(AbstractContactLaw):
-    """Undamped Hertz contact: ``F_N = K δ^n`` (MODEL.md §3) [lit].
+    """Undamped Hertz contact: ``F_N = K δ^n`` (docs/model.md §3) [lit].
 
     Attributes:
         stiffness: K, N/m^n; ``None`` (default) uses ``geometry.hertz_stiffness``

@@ -1,4 +1,4 @@
-"""Hybrid Lankarani–Nikravesh + elastic-foundation law, the paper's model (MODEL.md §3, items 1–5)
+"""Hybrid Lankarani–Nikravesh + elastic-foundation law, the paper's model (docs/model.md §3, items 1–5)
 [paper for the ingredients, ours for the details].
 
 Angles ψ are measured from the line of centres n towards t (t = n rotated by +90°), so the point of

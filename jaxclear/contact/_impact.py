@@ -1,4 +1,4 @@
-"""ADAMS-style IMPACT contact law (MODEL.md §3) [lit].
+"""ADAMS-style IMPACT contact law (docs/model.md §3) [lit].
 
 ``F_N = max(0, K δ^e + STEP(δ, 0, 0, d_max, c_max) δ̇)`` where ``STEP`` is the cubic smooth step
 from 0 at δ = 0 to c_max at δ = d_max. Provided for comparison with users of commercial codes.

@@ -1,4 +1,4 @@
-"""Consistent initial positions and velocities by Newton iteration (MODEL.md §1, Initial conditions).
+"""Consistent initial positions and velocities by Newton iteration (docs/model.md §1, Initial conditions).
 
 Positions: Newton–Raphson on Φ(q, t0) = 0 with least-norm (pseudo-inverse) steps from the bodies'
 initial guesses, so under-constrained mechanisms move as little as possible. Clearance joints take

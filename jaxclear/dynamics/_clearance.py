@@ -1,4 +1,4 @@
-"""Physics of a revolute clearance joint (MODEL.md §2): kinematics, contact forces, internal states.
+"""Physics of a revolute clearance joint (docs/model.md §2): kinematics, contact forces, internal states.
 
 The joint's parameters are data (``jaxclear.model.ClearanceJoint``); this module computes with
 them. Every computation is written on the coordinates of the two joined bodies only ("local"):
@@ -32,7 +32,7 @@ Index = Callable[[str], "int | None"]
 
 
 class JointKinematics(eqx.Module):
-    """Kinematics of one clearance joint at an instant (MODEL.md §2).
+    """Kinematics of one clearance joint at an instant (docs/model.md §2).
 
     Attributes:
         eccentricity_vector: e = r_journal − r_bearing (global components), m.
@@ -199,7 +199,7 @@ def local_kinematics(joint: ClearanceJoint, qb, qdb, qj, qdj) -> JointKinematics
 
 
 def kinematics(joint: ClearanceJoint, index: Index, q, qd) -> JointKinematics:
-    """Eccentricity, penetration, rates, contact points and slip velocity (MODEL.md §2)."""
+    """Eccentricity, penetration, rates, contact points and slip velocity (docs/model.md §2)."""
     return local_kinematics(joint, *_gather(body_indices(joint, index), q, qd))
 
 

@@ -1,4 +1,4 @@
-"""Constraint function Φ(q, t), its Jacobian Φ_q, Φ̇ and γ, all from JAX derivatives (MODEL.md §1)."""
+"""Constraint function Φ(q, t), its Jacobian Φ_q, Φ̇ and γ, all from JAX derivatives (docs/model.md §1)."""
 
 import jax
 import jax.numpy as jnp

@@ -1,10 +1,10 @@
-"""Index-1 equations of motion with Baumgarte stabilisation (MODEL.md §1).
+"""Index-1 equations of motion with Baumgarte stabilisation (docs/model.md §1).
 
     [ M    Φ_qᵀ ] [ q̈ ]   [ Q                 ]
     [ Φ_q  0    ] [ λ  ] = [ γ − 2αΦ̇ − β²Φ    ]
 
 M is diagonal in Cartesian coordinates, so the multipliers come from the small symmetric
-positive definite Schur complement S = Φ_q M⁻¹ Φ_qᵀ (MODEL.md §5b):
+positive definite Schur complement S = Φ_q M⁻¹ Φ_qᵀ (docs/model.md §5b):
 λ = S⁻¹ (Φ_q M⁻¹ Q − rhs), q̈ = M⁻¹ (Q − Φ_qᵀ λ).
 """
 

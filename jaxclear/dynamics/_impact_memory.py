@@ -1,4 +1,4 @@
-"""Impact-velocity memory of the smooth formulation (MODEL.md §5) [ours].
+"""Impact-velocity memory of the smooth formulation (docs/model.md §5) [ours].
 
 The damped contact laws need δ̇⁻, the normal approach speed at contact onset. The sharp hybrid
 model latches it by an event; the smooth formulation keeps a memory m per clearance joint that

@@ -1,4 +1,4 @@
-"""Friction laws of a revolute clearance joint (MODEL.md §4)."""
+"""Friction laws of a revolute clearance joint (docs/model.md §4)."""
 
 from ._base import AbstractFrictionLaw as AbstractFrictionLaw
 from ._coulomb import Coulomb as Coulomb

@@ -1,4 +1,4 @@
-"""Shared contract of the friction laws (MODEL.md §4).
+"""Shared contract of the friction laws (docs/model.md §4).
 
 A friction law maps the slip velocity v_T of the journal's contact point relative to the bearing's
 (along t), the normal force F_N >= 0 and its own internal state (LuGre's bristle deflection z; none

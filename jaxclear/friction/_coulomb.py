@@ -1,4 +1,4 @@
-"""Coulomb-type friction laws without internal state (MODEL.md §4) [lit]."""
+"""Coulomb-type friction laws without internal state (docs/model.md §4) [lit]."""
 
 import equinox as eqx
 import jax.numpy as jnp

@@ -1,4 +1,4 @@
-"""LuGre friction normalised by the normal force (MODEL.md §4) [paper; defaults ours].
+"""LuGre friction normalised by the normal force (docs/model.md §4) [paper; defaults ours].
 
     ż = v − σ0 |v| z / g(v),           g(v) = μ_k + (μ_s − μ_k) exp(−(v/v_s)²),
     F_T = −(σ0 z + σ1(v) ż + σ2 v) F_N,  σ1(v) = σ1 exp(−(v/v_s)²),

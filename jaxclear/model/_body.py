@@ -1,4 +1,4 @@
-"""Rigid planar bodies (MODEL.md §1)."""
+"""Rigid planar bodies (docs/model.md §1)."""
 
 import equinox as eqx
 import jax.numpy as jnp

@@ -1,4 +1,4 @@
-"""Revolute clearance joint (MODEL.md §2): a pin (journal) in a hole (bearing), as data.
+"""Revolute clearance joint (docs/model.md §2): a pin (journal) in a hole (bearing), as data.
 
 A ``ClearanceJoint`` takes the place of an ideal ``RevoluteJoint``: instead of two constraint
 equations it adds two degrees of freedom and contact forces. Its internal states (the
@@ -38,7 +38,7 @@ class ClearanceJoint(eqx.Module):
     The bearing (hole, radius R_B) is on ``bearing_body`` at ``bearing_point``; the journal (pin,
     radius R_J) on ``journal_body`` at ``journal_point``. Eccentricity e = r_journal − r_bearing;
     penetration δ = ‖e‖ − c; contact force on the journal f = −F_N n + F_T t applied at
-    Q_II = r_II + R_J n, the opposite on the bearing at Q_I = r_I + R_B n (MODEL.md §2).
+    Q_II = r_II + R_J n, the opposite on the bearing at Q_I = r_I + R_B n (docs/model.md §2).
 
     Attributes:
         name: label used in outputs (static).

@@ -1,4 +1,4 @@
-"""Force elements: applied forces and torques, linear spring–dampers (MODEL.md §1, Q).
+"""Force elements: applied forces and torques, linear spring–dampers (docs/model.md §1, Q).
 
 A force element contributes a generalised force vector Q (size of q). Elements with internal
 states declare ``num_states`` and give their time derivatives; those states live in the

@@ -1,4 +1,4 @@
-"""Ideal joints and driving constraints as constraint functions Φ(q, t) (MODEL.md §1).
+"""Ideal joints and driving constraints as constraint functions Φ(q, t) (docs/model.md §1).
 
 Each joint is an ``eqx.Module`` with static body names and array-valued geometry. The
 mechanism resolves body names to coordinate indices; a joint's ``constraint`` returns its rows of
@@ -42,7 +42,7 @@ class RevoluteJoint(AbstractJoint):
     """Ideal revolute joint: point ``point_i`` on ``body_i`` coincides with ``point_j`` on ``body_j``.
 
     Φ = r_i^P − r_j^P (2 equations). Its multipliers λ are minus the force that body j exerts on
-    body i at the joint (constraint force on q is −Φ_qᵀλ, MODEL.md §1, so body i receives −λ and
+    body i at the joint (constraint force on q is −Φ_qᵀλ, docs/model.md §1, so body i receives −λ and
     body j receives +λ); ``Trajectory.joint_force`` returns −λ.
 
     Attributes:

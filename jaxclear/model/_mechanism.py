@@ -20,7 +20,7 @@ def _array(x):
 
 
 class Mechanism(eqx.Module):
-    """A planar multibody mechanism (MODEL.md §1).
+    """A planar multibody mechanism (docs/model.md §1).
 
     Topology (names, counts, which joint connects what) is static; every physical value is an
     array leaf, so ``jax.grad`` and ``jax.vmap`` reach masses, lengths, clearances, stiffnesses, ...
@@ -37,7 +37,7 @@ class Mechanism(eqx.Module):
             internal states: impact memory, friction states).
         gravity: acceleration of gravity (g_x, g_y), m/s²; default (0, −9.81).
         baumgarte_alpha, baumgarte_beta: Baumgarte stabilisation α, β, 1/s (default 50, 50). The
-            literature value 5 (MODEL.md §1) lets the benchmark slider–crank at 5000 rpm drift to
+            literature value 5 (docs/model.md §1) lets the benchmark slider–crank at 5000 rpm drift to
             3e-5 m at the ideal joints (comparable to contact penetrations); 50 keeps it at 3e-7 m
             for 1.5 % more steps (measured with the 'fast' preset over 200 revolutions).
     """

@@ -1,18 +1,18 @@
 """Independent NumPy/SciPy reference: slider-crank with revolute clearance joints.
 
-Shares nothing with ``jaxclear`` except the parameter values of MODEL.md §6.  Cartesian coordinates
+Shares nothing with ``jaxclear`` except the parameter values of docs/model.md §6.  Cartesian coordinates
 q = (x, y, phi) for crank (body 0), rod (1), slider (2); ground has no coordinates.  Hand-written
 constraint Jacobians, index-1 equations with Baumgarte stabilisation, multipliers from the Schur
 complement (M is diagonal).  Two contact modes:
 
 * ``"sharp"``: the hybrid model; events on delta = e - c, impact velocity latched at each onset;
-* ``"smooth"``: MODEL.md §5 -- C1 ramps for the penetration and the damping factor, and an
+* ``"smooth"``: docs/model.md §5 -- C1 ramps for the penetration and the damping factor, and an
   impact-velocity memory state m per joint, m' = w(delta) [d(delta')/dt + k_m (delta' - m)].
 
 State y = (q[9], qd[9], m[n_clearance] (smooth mode only), z[n_clearance] (LuGre friction only),
 W (drive work, optional)).
 
-Friction (``friction=``, MODEL.md §4), the formulas and smoothings re-implemented in NumPy:
+Friction (``friction=``, docs/model.md §4), the formulas and smoothings re-implemented in NumPy:
 * ``("coulomb", mu, v_eps)``: F_T = -mu F_N tanh(v_T/v_eps);
 * ``("modified-coulomb", mu, v0=1e-4, v1=1e-3)``: F_T = -mu c_d(|v_T|) F_N sgn(v_T) with
   c_d = [ramp(|v| - v0, w_v) - ramp(|v| - v1, w_v)] / (v1 - v0) (corners rounded by ``ramp``);
@@ -552,7 +552,7 @@ MODEL_MD_IDEAL = dict(
 
 
 def check_ideal(points_per_revolution=3600, assert_ok=True):
-    """Ideal joints, 5000 rpm, no gravity: MODEL.md §6 numbers, closed form, torque sign by energy."""
+    """Ideal joints, 5000 rpm, no gravity: docs/model.md §6 numbers, closed form, torque sign by energy."""
     r = simulate(
         (), 5000, 1, points_per_revolution, mode="sharp", rtol=1e-11, atol=1e-13, track_work=True
     )
