@@ -257,11 +257,22 @@ def plot_orbit(traj, joint: str, *, ax=None) -> Figure:
 
 
 def plot_contact_forces(traj, *, ax=None) -> Figure:
-    """Normal contact force of every clearance joint against crank angle."""
+    """Normal contact force of every clearance joint against crank angle.
+
+    With ``traj.extremes`` (the default), a dotted line per joint marks its peak taken from the
+    solver's steps over the statistics window: impacts last microseconds, so the saved instants
+    drawn as the curve can miss most of a peak (docs/outputs.md).
+    """
     fig, ax = _new_axes(ax)
     for k, name in enumerate(clearance_joint_names(traj)):
         angle, force = _curve(traj, f"{name}_normal_force", "angle")
         ax.plot(angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
+        if traj.extremes is not None:
+            peak = float(traj.extremes.normal_force_max[name]) / 1e3
+            ax.axhline(
+                peak, color=f"C{k}", linestyle=":", linewidth=1.0,
+                label=f"joint {name} peak from the solver's steps, {peak:.3g} kN",
+            )
         _angle_ticks(ax, angle.values)
     ax.set_xlabel(_angle_label(traj))
     ax.set_ylabel("Normal contact force (kN)")
