@@ -108,10 +108,15 @@ def test_orbit_plot(clearance_traj):
 def test_contact_force_plot(clearance_traj):
     fig = plot.plot_contact_forces(clearance_traj)
     ax = fig.axes[0]
-    (line,) = ax.get_lines()
+    line, peak = ax.get_lines()
     np.testing.assert_allclose(line.get_ydata(), np.asarray(clearance_traj.clearance["B"]["normal_force"]) / 1e3)  # kN
+    # the dotted line: the peak from the solver's steps, at or above every saved instant
+    peak_kn = float(clearance_traj.extremes.normal_force_max["B"]) / 1e3
+    np.testing.assert_allclose(peak.get_ydata(), [peak_kn, peak_kn])
+    assert peak_kn >= 0.999 * np.max(line.get_ydata())  # 0.1 %: the sampled peak estimate (tests/test_statistics.py)
     assert "kN" in ax.get_ylabel()
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["joint B"]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[0] == "joint B" and labels[1].startswith("joint B peak from the solver's steps")
 
 
 def test_unknown_quantity(traj):
