@@ -98,15 +98,8 @@ class LawsonInterpolation(diffrax.AbstractLocalInterpolation):
     def __init__(self, *, t0, t1, y0, y1, k, hl, k_rows, rows):
         del y1  # diffrax passes it; the interpolant does not need it
         # pyright reads diffrax's `AbstractVar` t0/t1 as class variables (pyright#4965)
-        self.t0, self.t1, self.y0, self.k, self.hl, self.k_rows, self.rows = (
-            t0,
-            t1,
-            y0,
-            k,
-            hl,
-            k_rows,
-            rows,
-        )  # pyright: ignore[reportIncompatibleVariableOverride]
+        self.t0, self.t1 = t0, t1  # pyright: ignore[reportIncompatibleVariableOverride]
+        self.y0, self.k, self.hl, self.k_rows, self.rows = y0, k, hl, k_rows, rows
 
     def evaluate(self, t0, t1=None, left=True):
         del left
