@@ -208,29 +208,21 @@ def _simulate_core(
     if isinstance(adjoint, diffrax.ForwardMode) and isinstance(solver, diffrax.AbstractRungeKutta):
         if solver.scan_kind is None:
             solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
-    try:
-        sol = diffrax.diffeqsolve(
-            terms,
-            ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float)) if track_extremes else solver,
-            t0,
-            t1,
-            config.dt0,
-            y_start,
-            args=solve_mechanism,
-            saveat=saveat,
-            stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows if offset else None),
-            max_steps=config.max_steps,
-            adjoint=adjoint,
-            throw=False,
-            progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),
-        )
-    except TypeError as e:
-        if "custom_vjp" in str(e):
-            raise TypeError(
-                "forward-mode differentiation (jax.jvp, jax.jacfwd) of simulate needs adjoint='forward'; "
-                "it could not be detected here because the transformation is outside a jax.jit."
-            ) from e
-        raise
+    sol = diffrax.diffeqsolve(
+        terms,
+        ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float)) if track_extremes else solver,
+        t0,
+        t1,
+        config.dt0,
+        y_start,
+        args=solve_mechanism,
+        saveat=saveat,
+        stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows if offset else None),
+        max_steps=config.max_steps,
+        adjoint=adjoint,
+        throw=False,
+        progress_meter=diffrax.TqdmProgressMeter() if progress else diffrax.NoProgressMeter(),
+    )
     # diffrax types Solution.ys/ts as optional; the SaveAt above always saves both
     ys, y_final = sol.ys[0], sol.ys[1][-1]  # pyright: ignore[reportOptionalSubscript]
     if offset:
@@ -384,18 +376,26 @@ def simulate(
     elif not traced:
         y0 = assemble(mechanism, t0)
     start = t0 if statistics_start is None else statistics_start
-    traj = _simulate_core(
-        mechanism,
-        grid,
-        jnp.asarray(t0, dtype=float),
-        jnp.asarray(t1, dtype=float),
-        y0,
-        jnp.asarray(start, dtype=float),
-        config,
-        make_adjoint(adjoint, (mechanism, y0)),
-        progress,
-        extremes,
-    )
+    try:
+        traj = _simulate_core(
+            mechanism,
+            grid,
+            jnp.asarray(t0, dtype=float),
+            jnp.asarray(t1, dtype=float),
+            y0,
+            jnp.asarray(start, dtype=float),
+            config,
+            make_adjoint(adjoint, (mechanism, y0)),
+            progress,
+            extremes,
+        )
+    except TypeError as e:  # jax.jvp/jacfwd through the reverse-mode adjoint (a custom_vjp)
+        if "custom_vjp" in str(e):
+            raise TypeError(
+                "forward-mode differentiation (jax.jvp, jax.jacfwd) of simulate needs adjoint='forward' "
+                "(or the default 'auto' when the jvp is not outside a jax.jit of your function)."
+            ) from e
+        raise
     if not traced:
         raise_for_failure(traj, config if throw else None)
     return traj
