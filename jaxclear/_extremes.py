@@ -150,15 +150,23 @@ class Extremes(eqx.Module):
             duration=self.duration + width,
             acceleration_min=both(lo, self.acceleration_min, lambda o: o.accelerations),
             acceleration_max=both(hi, self.acceleration_max, lambda o: o.accelerations),
-            body_acceleration_max=both(hi, self.body_acceleration_max, lambda o: o.body_accelerations),
+            body_acceleration_max=both(
+                hi, self.body_acceleration_max, lambda o: o.body_accelerations
+            ),
             input_torque_min=both(lo, self.input_torque_min, lambda o: o.input_torque),
             input_torque_max=both(hi, self.input_torque_max, lambda o: o.input_torque),
             input_torque_square_integral=self.input_torque_square_integral + width * square,
             normal_force_max={
-                k: both(hi, v, lambda o, k=k: o.normal_force[k]) for k, v in self.normal_force_max.items()
+                k: both(hi, v, lambda o, k=k: o.normal_force[k])
+                for k, v in self.normal_force_max.items()
             },
-            penetration_max={k: both(hi, v, lambda o, k=k: o.penetration[k]) for k, v in self.penetration_max.items()},
-            constraint_violation_max=both(hi, self.constraint_violation_max, lambda o: o.constraint_violation),
+            penetration_max={
+                k: both(hi, v, lambda o, k=k: o.penetration[k])
+                for k, v in self.penetration_max.items()
+            },
+            constraint_violation_max=both(
+                hi, self.constraint_violation_max, lambda o: o.constraint_violation
+            ),
             times=jnp.stack([t1, t]),
             recent=(last, obs),
         )
@@ -202,15 +210,25 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
         return self.solver.strong_order(terms)
 
     def init(self, terms, t0, t1, y0, args):
-        return self.solver.init(terms, t0, t1, y0, args), Extremes.first(self.start, t0, self.observe(t0, y0, args))
+        return self.solver.init(terms, t0, t1, y0, args), Extremes.first(
+            self.start, t0, self.observe(t0, y0, args)
+        )
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         inner, extremes = solver_state
-        y1, y_error, dense_info, inner, result = self.solver.step(terms, t0, t1, y0, args, inner, made_jump)
+        y1, y_error, dense_info, inner, result = self.solver.step(
+            terms, t0, t1, y0, args, inner, made_jump
+        )
         t_mid = 0.5 * (t0 + t1)
         y_mid = self.solver.interpolation_cls(t0=t0, t1=t1, **dense_info).evaluate(t_mid)
         extremes = extremes.update(t_mid, self.observe(t_mid, y_mid, args))
-        return y1, y_error, dense_info, (inner, extremes.update(t1, self.observe(t1, y1, args))), result
+        return (
+            y1,
+            y_error,
+            dense_info,
+            (inner, extremes.update(t1, self.observe(t1, y1, args))),
+            result,
+        )
 
     def func(self, terms, t0, y0, args):
         return self.solver.func(terms, t0, y0, args)

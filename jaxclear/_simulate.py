@@ -9,7 +9,6 @@ import jax
 import jax.core  # jax.core.Tracer: imported for type checkers (jax imports it itself)
 import jax.numpy as jnp
 import numpy as np
-
 from jax.interpreters import ad
 
 from ._checks import is_concrete
@@ -65,7 +64,9 @@ def check_parameters(mechanism) -> None:
     for path, leaf in leaves:
         if is_concrete(leaf) and not np.all(np.isfinite(np.asarray(leaf))):
             where = jax.tree_util.keystr(path)
-            raise ModelError(f"mechanism parameter {where} is not finite ({np.asarray(leaf)}); give a finite value.")
+            raise ModelError(
+                f"mechanism parameter {where} is not finite ({np.asarray(leaf)}); give a finite value."
+            )
 
 
 def _outputs(mechanism, t, y) -> dict[str, Any]:
@@ -182,7 +183,16 @@ def make_adjoint(adjoint, traced_tree=None) -> diffrax.AbstractAdjoint:
 
 @eqx.filter_jit
 def _simulate_core(
-    mechanism, ts, t0, t1, y0, stats_start, config: SolverConfig, adjoint, progress: bool, track_extremes: bool
+    mechanism,
+    ts,
+    t0,
+    t1,
+    y0,
+    stats_start,
+    config: SolverConfig,
+    adjoint,
+    progress: bool,
+    track_extremes: bool,
 ):
     assembled_ok = jnp.asarray(True)
     if y0 is None:
@@ -190,7 +200,9 @@ def _simulate_core(
         assembled_ok = pos_res < ASSEMBLY_TOLERANCE
         y0 = initial_state(mechanism, q0, qd0)
     input_error = _input_error(mechanism, y0, assembled_ok)
-    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=track_extremes)
+    saveat = diffrax.SaveAt(
+        subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=track_extremes
+    )
     # IMEX methods run as AffineKenCarp (closed-form stage solves, jaxclear/_imex.py) on the full
     # vector field, with the stiff part passed to the solver.
     terms = diffrax.ODETerm(_FULL)
@@ -200,7 +212,10 @@ def _simulate_core(
     solve_mechanism = mechanism.with_memory_offset() if offset else mechanism
     y_start = y0 - memory_offset_shift(mechanism, y0) if offset else y0
     solver = config.make_solver(
-        num_explicit=2 * mechanism.num_coordinates, decay=_DECAY, memory_rows=mechanism.memory_rows, stiff=_STIFF
+        num_explicit=2 * mechanism.num_coordinates,
+        decay=_DECAY,
+        memory_rows=mechanism.memory_rows,
+        stiff=_STIFF,
     )
     # ForwardMode sets the Runge–Kutta stage loop to a kind that jvp can go through only for an
     # unwrapped solver (diffrax/_adjoint.py, ForwardMode, "Support forward-mode autodiff"); do it
@@ -210,14 +225,18 @@ def _simulate_core(
             solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
     sol = diffrax.diffeqsolve(
         terms,
-        ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float)) if track_extremes else solver,
+        ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float))
+        if track_extremes
+        else solver,
         t0,
         t1,
         config.dt0,
         y_start,
         args=solve_mechanism,
         saveat=saveat,
-        stepsize_controller=config.make_controller(memory_rows=mechanism.memory_rows if offset else None),
+        stepsize_controller=config.make_controller(
+            memory_rows=mechanism.memory_rows if offset else None
+        ),
         max_steps=config.max_steps,
         adjoint=adjoint,
         throw=False,
@@ -276,7 +295,9 @@ def _time_grid(t0, t1, ts, num_points):
         raise ValueError("ts must be a 1-D array of output times.")
     if _is_concrete_number(t0) and _is_concrete_number(t1):
         if np.any(np.diff(ts) < 0) or ts[0] < t0 or ts[-1] > t1 or not np.all(np.isfinite(ts)):
-            raise ValueError(f"ts must be increasing and inside [t0, t1] = [{t0}, {t1}]; got {ts[0]} .. {ts[-1]}.")
+            raise ValueError(
+                f"ts must be increasing and inside [t0, t1] = [{t0}, {t1}]; got {ts[0]} .. {ts[-1]}."
+            )
     return jnp.asarray(ts)
 
 
@@ -449,7 +470,10 @@ def failure_error(traj: Trajectory, config: SolverConfig) -> SimulationError:
         fix = "the problem may be stiff (e.g. LuGre friction): use solver='robust' (Kvaerno5)"
     else:
         fix = "loosen newton_rtol/newton_atol, loosen rtol, or increase the smoothing widths"
-    coords = ", ".join(f"{b}=({y[3*i]:.6g}, {y[3*i+1]:.6g}, {y[3*i+2]:.6g})" for i, b in enumerate(mech.body_names))
+    coords = ", ".join(
+        f"{b}=({y[3 * i]:.6g}, {y[3 * i + 1]:.6g}, {y[3 * i + 2]:.6g})"
+        for i, b in enumerate(mech.body_names)
+    )
     return SimulationError(
         f"simulation failed at t = {t:.9g} s after {int(traj.num_steps)} steps ({reason}). "
         f"Coordinates (x, y, phi): {coords}. Suggested fix: {fix}.",
@@ -497,8 +521,16 @@ def simulate_batch(
 
     def one(p):
         return simulate(
-            build(p), t1, t0=t0, ts=ts, num_points=num_points, solver=config, adjoint=adjoint,
-            statistics_start=statistics_start, extremes=extremes, throw=False,
+            build(p),
+            t1,
+            t0=t0,
+            ts=ts,
+            num_points=num_points,
+            solver=config,
+            adjoint=adjoint,
+            statistics_start=statistics_start,
+            extremes=extremes,
+            throw=False,
         )
 
     traj = eqx.filter_vmap(one)(parameters)

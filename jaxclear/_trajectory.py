@@ -111,9 +111,23 @@ class Trajectory(eqx.Module):
         Only for a single (unbatched) trajectory.
         """
         keep = int(np.sum(np.asarray(self.t) <= float(self.t_final)))
-        per_instant = ("t", "q", "qd", "qdd", "internal_state", "multipliers", "input_torque", "reactions",
-                       "constraint_violation", "velocity_violation", "clearance")
-        changes = {name: jax.tree_util.tree_map(lambda x: x[:keep], getattr(self, name)) for name in per_instant}
+        per_instant = (
+            "t",
+            "q",
+            "qd",
+            "qdd",
+            "internal_state",
+            "multipliers",
+            "input_torque",
+            "reactions",
+            "constraint_violation",
+            "velocity_violation",
+            "clearance",
+        )
+        changes = {
+            name: jax.tree_util.tree_map(lambda x: x[:keep], getattr(self, name))
+            for name in per_instant
+        }
         return dataclasses.replace(self, **changes)
 
     def stats(self) -> dict:

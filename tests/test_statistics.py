@@ -22,7 +22,10 @@ values), so values taken from the steps agree to round-off."""
 
 def _one_joint():
     return slider_crank(
-        rpm=RPM, clearance_joints="B", friction_law=ModifiedCoulomb(0.01), contact_law=LankaraniNikravesh()
+        rpm=RPM,
+        clearance_joints="B",
+        friction_law=ModifiedCoulomb(0.01),
+        contact_law=LankaraniNikravesh(),
     )
 
 
@@ -67,7 +70,9 @@ def test_named_statistics(runs):
     assert float(stats["statistics_duration"]) == pytest.approx(PERIOD, rel=1e-12)
 
 
-IDEAL_TORQUE_EXTREME = 138.52  # N m, docs/model.md §6 (computed independently), 5000 rpm, no gravity
+IDEAL_TORQUE_EXTREME = (
+    138.52  # N m, docs/model.md §6 (computed independently), 5000 rpm, no gravity
+)
 IDEAL_SLIDER_ACCELERATION = 19419.0  # m/s², peak |ẍ| at outer dead centre, same source
 IDEAL_RTOL = 5e-3
 """Step ends of the smooth ideal run are ~6° of crank angle apart, so the extremes between them
@@ -75,12 +80,16 @@ are missed by at most 1 − cos 3° ≈ 0.14 %; the references are given to 4–
 
 
 def test_ideal_extremes_match_the_reference():
-    traj = jaxclear.simulate(slider_crank(rpm=RPM, gravity=False), PERIOD, num_points=GRIDS[0], solver="fast")
+    traj = jaxclear.simulate(
+        slider_crank(rpm=RPM, gravity=False), PERIOD, num_points=GRIDS[0], solver="fast"
+    )
     stats = jaxclear.analysis.statistics(traj)
     print({k: float(v) for k, v in stats.items()})
     assert float(stats["crank_torque_max"]) == pytest.approx(IDEAL_TORQUE_EXTREME, rel=IDEAL_RTOL)
     assert float(stats["crank_torque_min"]) == pytest.approx(-IDEAL_TORQUE_EXTREME, rel=IDEAL_RTOL)
-    assert float(stats["peak_slider_acceleration"]) == pytest.approx(IDEAL_SLIDER_ACCELERATION, rel=IDEAL_RTOL)
+    assert float(stats["peak_slider_acceleration"]) == pytest.approx(
+        IDEAL_SLIDER_ACCELERATION, rel=IDEAL_RTOL
+    )
     # RMS from the steps (trapezoidal) against the RMS of a fine uniform grid over one period
     torque = np.asarray(traj.input_torque)
     grid_rms = np.sqrt(np.mean(torque[:-1] ** 2))
@@ -91,7 +100,9 @@ def test_statistics_window():
     """Values over [start, t1] only: after a start-up half period the first impact's peak is out."""
     mech = _one_joint()
     full = jaxclear.simulate(mech, PERIOD, num_points=GRIDS[0], solver="fast")
-    late = jaxclear.simulate(mech, PERIOD, num_points=GRIDS[0], solver="fast", statistics_start=0.5 * PERIOD)
+    late = jaxclear.simulate(
+        mech, PERIOD, num_points=GRIDS[0], solver="fast", statistics_start=0.5 * PERIOD
+    )
     assert float(late.extremes.duration) == pytest.approx(0.5 * PERIOD, rel=1e-9)
     t = np.asarray(full.t)
     force = np.asarray(full.clearance["B"]["normal_force"])
@@ -119,4 +130,6 @@ def test_statistics_under_jit_and_vmap():
     for k, rpm in enumerate(speeds):
         single = stats(float(rpm))
         for name, value in single.items():
-            assert float(batched[name][k]) == pytest.approx(float(value), rel=BATCH_RTOL, abs=1e-12), name
+            assert float(batched[name][k]) == pytest.approx(
+                float(value), rel=BATCH_RTOL, abs=1e-12
+            ), name

@@ -37,7 +37,12 @@ differences that the adaptive controller can amplify only slightly (it takes the
 
 def _compared(traj):
     return dict(
-        q=traj.q, qd=traj.qd, qdd=traj.qdd, input_torque=traj.input_torque, reactions=traj.reactions, t_final=traj.t_final
+        q=traj.q,
+        qd=traj.qd,
+        qdd=traj.qdd,
+        input_torque=traj.input_torque,
+        reactions=traj.reactions,
+        t_final=traj.t_final,
     )
 
 
@@ -66,13 +71,18 @@ def test_jit_matches_eager(eager):
 
     @jax.jit
     def run(rpm, crank_mass):
-        return jaxclear.simulate(slider_crank(rpm=rpm, crank_mass=crank_mass), T1, num_points=NUM_POINTS, solver=FAST)
+        return jaxclear.simulate(
+            slider_crank(rpm=rpm, crank_mass=crank_mass), T1, num_points=NUM_POINTS, solver=FAST
+        )
 
     jitted = run(jnp.asarray(RPM), jnp.asarray(0.30))
     assert bool(jitted.succeeded)
     assert int(jitted.num_steps) == int(eager.num_steps)
     a, b = _compared(jitted), _compared(eager)
-    diff = {k: float(np.max(np.abs(np.asarray(a[k]) - np.asarray(b[k])))) for k in ("q", "qd", "qdd", "input_torque")}
+    diff = {
+        k: float(np.max(np.abs(np.asarray(a[k]) - np.asarray(b[k]))))
+        for k in ("q", "qd", "qdd", "input_torque")
+    }
     print(f"jit vs eager, max abs differences: {diff}")
     assert _close(a, b)
     assert tree_allclose(jitted.mechanism, eager.mechanism, rtol=1e-14, atol=0.0)
@@ -91,7 +101,9 @@ def _build(p):
 @pytest.fixture(scope="module")
 def batched():
     params = jax.tree_util.tree_map(jnp.asarray, BATCH)
-    return jaxclear.simulate_batch(_build, params, T1, num_points=NUM_POINTS, solver="auto")  # ideal joints: auto -> fast
+    return jaxclear.simulate_batch(
+        _build, params, T1, num_points=NUM_POINTS, solver="auto"
+    )  # ideal joints: auto -> fast
 
 
 def test_batch_matches_loop(batched):
@@ -102,7 +114,9 @@ def test_batch_matches_loop(batched):
         single = jaxclear.simulate(_build(p), T1, num_points=NUM_POINTS, solver="fast")
         member = jax.tree_util.tree_map(lambda x: x[k], _compared(batched))
         err = float(np.max(np.abs(np.asarray(member["qdd"]) - np.asarray(single.qdd))))
-        print(f"member {k} {p}: steps batch {int(batched.num_steps[k])} / loop {int(single.num_steps)}, max |Δq̈| = {err:.3g}")
+        print(
+            f"member {k} {p}: steps batch {int(batched.num_steps[k])} / loop {int(single.num_steps)}, max |Δq̈| = {err:.3g}"
+        )
         assert int(batched.num_steps[k]) == int(single.num_steps)
         assert _close(member, _compared(single))
 
@@ -148,8 +162,13 @@ def test_no_recompile_when_parameters_change(eager, batched):
         mech = slider_crank(rpm=4321.0, crank_mass=0.37, rod_length=0.13, rod_inertia=3e-4)
         traj = jaxclear.simulate(mech, 1.5 * T1, num_points=NUM_POINTS, solver="fast")
         traj.q.block_until_ready()
-        params = {"rpm": jnp.array([1000.0, 3000.0, 4000.0]), "crank_mass": jnp.array([0.1, 0.2, 0.3])}
-        again = jaxclear.simulate_batch(_build, params, 0.5 * T1, num_points=NUM_POINTS, solver="fast")
+        params = {
+            "rpm": jnp.array([1000.0, 3000.0, 4000.0]),
+            "crank_mass": jnp.array([0.1, 0.2, 0.3]),
+        }
+        again = jaxclear.simulate_batch(
+            _build, params, 0.5 * T1, num_points=NUM_POINTS, solver="fast"
+        )
         again.q.block_until_ready()
     print(f"events during the second calls: {dict(counts)}")
     assert bool(traj.succeeded) and np.all(np.asarray(again.succeeded))
@@ -162,7 +181,11 @@ def test_no_recompile_when_parameters_change(eager, batched):
 # --------------------------------------------------------------------------------------------
 STEPS_PER_REVOLUTION = 400
 FIXED_STEP = jaxclear.SolverConfig(
-    method="tsit5", rtol=1e-3, atol=1e-3, dt0=PERIOD / STEPS_PER_REVOLUTION, dtmax=PERIOD / STEPS_PER_REVOLUTION
+    method="tsit5",
+    rtol=1e-3,
+    atol=1e-3,
+    dt0=PERIOD / STEPS_PER_REVOLUTION,
+    dtmax=PERIOD / STEPS_PER_REVOLUTION,
 )
 """Tsit5 at a constant step T/400 (the local error, ~(ωh)⁵ ≈ 1e-9, never trips the loose
 tolerances, so dtmax fixes every step): the discrete solution is then a smooth function of the
@@ -205,8 +228,12 @@ def test_grad_slider_position_wrt_rod_length():
     r, th = 0.05, OMEGA * t1
     analytic = ell / np.sqrt(ell**2 - r**2 * np.sin(th) ** 2)
     g = float(grad["rod_length"])
-    print(f"d x_B/d l: grad {g:.12g}, FD {fd:.12g}, closed form {analytic:.12g}; d x_B/d m_rod = {float(grad['rod_mass']):.3g}")
-    assert float(value) == pytest.approx(r * np.cos(th) + np.sqrt(ell**2 - r**2 * np.sin(th) ** 2), rel=ANALYTIC_RTOL)
+    print(
+        f"d x_B/d l: grad {g:.12g}, FD {fd:.12g}, closed form {analytic:.12g}; d x_B/d m_rod = {float(grad['rod_mass']):.3g}"
+    )
+    assert float(value) == pytest.approx(
+        r * np.cos(th) + np.sqrt(ell**2 - r**2 * np.sin(th) ** 2), rel=ANALYTIC_RTOL
+    )
     assert g == pytest.approx(fd, rel=GRAD_RTOL)
     assert g == pytest.approx(analytic, rel=ANALYTIC_RTOL)
     assert abs(float(grad["rod_mass"])) < 1e-6  # m/kg; a 1e-6 m drift per kg would be visible
@@ -219,7 +246,9 @@ FREE_STEP = 1e-3  # s
 def test_grad_free_four_bar_wrt_masses():
     """A genuinely dynamic gradient: the undriven four-bar released from rest under gravity; its
     crank angle at t1 depends on the link masses only through the equations of motion."""
-    config = jaxclear.SolverConfig(method="tsit5", rtol=1e-3, atol=1e-3, dt0=FREE_STEP, dtmax=FREE_STEP)
+    config = jaxclear.SolverConfig(
+        method="tsit5", rtol=1e-3, atol=1e-3, dt0=FREE_STEP, dtmax=FREE_STEP
+    )
 
     def crank_angle(masses):
         mech = four_bar(rpm=None, coupler_mass=masses["coupler"], rocker_mass=masses["rocker"])
@@ -237,7 +266,9 @@ def test_grad_free_four_bar_wrt_masses():
 
     for name in p:
         direction = {k: jnp.asarray(1.0 if k == name else 0.0) for k in p}
-        fd = float(central_difference_jvp(value_only, p, direction, eps=FD_RELATIVE_STEP * float(p[name])))
+        fd = float(
+            central_difference_jvp(value_only, p, direction, eps=FD_RELATIVE_STEP * float(p[name]))
+        )
         print(f"d crank angle / d {name} mass: grad {float(grad[name]):.12g}, FD {fd:.12g}")
         assert abs(fd) > 1e-3  # not a trivially zero derivative
         assert float(grad[name]) == pytest.approx(fd, rel=GRAD_RTOL)
@@ -247,8 +278,12 @@ def test_vmap_of_simulate_matches_batch(batched):
     """``jax.vmap`` of the public ``simulate`` is what ``simulate_batch`` does; and
     ``simulate_batch`` itself can be jitted."""
     params = jax.tree_util.tree_map(jnp.asarray, BATCH)
-    mapped = jax.vmap(lambda p: jaxclear.simulate(_build(p), T1, num_points=NUM_POINTS, solver=FAST))(params)
-    jitted = jax.jit(lambda p: jaxclear.simulate_batch(_build, p, T1, num_points=NUM_POINTS, solver=FAST))(params)
+    mapped = jax.vmap(
+        lambda p: jaxclear.simulate(_build(p), T1, num_points=NUM_POINTS, solver=FAST)
+    )(params)
+    jitted = jax.jit(
+        lambda p: jaxclear.simulate_batch(_build, p, T1, num_points=NUM_POINTS, solver=FAST)
+    )(params)
     assert _close(_compared(mapped), _compared(batched))
     assert _close(_compared(jitted), _compared(batched))
 
@@ -327,7 +362,10 @@ def test_one_joint_reverse_forward_and_central_differences_agree(one_joint_deriv
     p, f = d["p"], d["f"]
     direction = {k: jnp.asarray(1.0 if k == name else 0.0) for k in p}
     scale = abs(float(p[name])) or 1e-2  # journal_speed is 0 m/s: steps relative to 1 cm/s
-    fds = [np.asarray(central_difference_jvp(f, p, direction, eps=r * scale)) for r in FD_RELATIVE_STEPS]
+    fds = [
+        np.asarray(central_difference_jvp(f, p, direction, eps=r * scale))
+        for r in FD_RELATIVE_STEPS
+    ]
     reverse, forward = np.asarray(d["reverse"][name]), np.asarray(d["forward"][name])
     size = np.max(np.abs(fds[-1]))
     print(f"d/d {name}: reverse {reverse}, forward {forward}, FD {fds}")
@@ -356,7 +394,9 @@ def test_jvp_with_reverse_adjoint_names_the_forward_option(one_joint_y0):
 
     def slider_x(c):
         mechanism = _one_joint({**ONE_JOINT, "clearance": c})
-        return jaxclear.simulate(mechanism, WINDOW, num_points=3, solver=TIGHT, adjoint="reverse").q[-1, 6]
+        return jaxclear.simulate(
+            mechanism, WINDOW, num_points=3, solver=TIGHT, adjoint="reverse"
+        ).q[-1, 6]
 
     with pytest.raises(TypeError, match="needs adjoint='forward'"):
         jax.jvp(slider_x, (jnp.asarray(5e-4),), (jnp.asarray(1.0),))
@@ -395,7 +435,9 @@ def test_one_joint_jit_vmap_grad_equals_loop_of_grad(one_joint_y0):
 def test_one_joint_no_recompile_on_new_values(one_joint_derivatives):
     d = one_joint_derivatives
     with count_compilations() as counts:
-        d["f"]({**d["p"], "clearance": jnp.asarray(4e-4), "slider_mass": jnp.asarray(0.2)}).block_until_ready()
+        d["f"](
+            {**d["p"], "clearance": jnp.asarray(4e-4), "slider_mass": jnp.asarray(0.2)}
+        ).block_until_ready()
     assert counts[TRACE_EVENT] == 0 and counts[COMPILE_EVENT] == 0
 
 

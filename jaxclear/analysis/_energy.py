@@ -22,7 +22,9 @@ def potential_energy(traj):
     grav = -jnp.sum(masses * jnp.sum(pos * g, axis=-1), axis=-1)
     springs = jnp.zeros_like(grav)
     q = jnp.reshape(traj.q, (-1, traj.q.shape[-1]))
-    for f in mech.forces:  # AbstractForceElement.potential_energy: zero unless the element stores energy
+    for f in (
+        mech.forces
+    ):  # AbstractForceElement.potential_energy: zero unless the element stores energy
         energy = jax.vmap(lambda qq, f=f: f.potential_energy(mech.index, qq))(q)
         springs = springs + jnp.reshape(energy, springs.shape)
     return grav + springs

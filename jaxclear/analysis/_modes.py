@@ -46,7 +46,9 @@ def crank_period(mechanism) -> float | None:
     return float(2 * np.pi / abs(float(speed)))
 
 
-def trajectory_modes(traj, continuous_fraction: float = DEFAULT_CONTINUOUS_FRACTION, reference_period=None) -> dict:
+def trajectory_modes(
+    traj, continuous_fraction: float = DEFAULT_CONTINUOUS_FRACTION, reference_period=None
+) -> dict:
     """Mode labels per clearance joint: ``{joint name: (N,) int array}``."""
     period = reference_period or crank_period(traj.mechanism) or float(traj.t[-1] - traj.t[0])
     return {

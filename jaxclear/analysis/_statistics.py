@@ -33,7 +33,9 @@ def statistics(traj) -> dict[str, Float[Array, "..."]]:
     """
     x = traj.extremes
     if x is None:
-        raise ValueError("the trajectory has no extremes: simulate it with extremes=True (the default).")
+        raise ValueError(
+            "the trajectory has no extremes: simulate it with extremes=True (the default)."
+        )
     mechanism = traj.mechanism
     out = {}
     for name in x.normal_force_max:
