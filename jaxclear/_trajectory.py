@@ -12,7 +12,6 @@ from jaxtyping import Array, Float, Int
 from ._extremes import Extremes
 from .model import Mechanism
 
-
 INPUT_ERRORS = {
     1: "mechanism cannot be assembled: run jaxclear.assemble() on it for details",
     2: "mass and inertia of every body must be positive and finite (see Body)",
