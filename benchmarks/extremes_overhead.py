@@ -43,7 +43,10 @@ def main() -> None:
     args = parser.parse_args()
     cases = {
         "a": slider_crank(
-            rpm=RPM, clearance_joints="B", friction_law=ModifiedCoulomb(0.01), contact_law=LankaraniNikravesh()
+            rpm=RPM,
+            clearance_joints="B",
+            friction_law=ModifiedCoulomb(0.01),
+            contact_law=LankaraniNikravesh(),
         ),
         "c": slider_crank(rpm=RPM, clearance_joints=("O", "A", "B")),
     }
