@@ -29,7 +29,16 @@ RUN_FORMAT = 1
 CSV_FORMAT = "%.12g"
 """12 significant digits in the CSV (results.npz keeps full float64 precision)."""
 
-VERSIONED_PACKAGES = ("jaxclear", "jax", "jaxlib", "diffrax", "equinox", "lineax", "optimistix", "numpy")
+VERSIONED_PACKAGES = (
+    "jaxclear",
+    "jax",
+    "jaxlib",
+    "diffrax",
+    "equinox",
+    "lineax",
+    "optimistix",
+    "numpy",
+)
 
 # Units and descriptions of the per-instant outputs of a clearance joint (Trajectory.clearance);
 # keys not listed here are written with an empty unit.
@@ -71,7 +80,9 @@ def driven_angle_deg(traj) -> np.ndarray:
     """
     mech = traj.mechanism
     if mech.driver is None:
-        raise ValueError("the mechanism has no driver, so it has no crank angle; plot against time instead.")
+        raise ValueError(
+            "the mechanism has no driver, so it has no crank angle; plot against time instead."
+        )
     phi = np.asarray(traj.coordinates(mech.driver.body))[:, 2]
     return np.degrees(np.unwrap(phi))
 
@@ -94,7 +105,9 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     """
     t = np.asarray(traj.t, dtype=float)
     if t.ndim != 1:
-        raise ValueError(f"result_columns needs one trajectory, got a batch (t has shape {t.shape}); index it first.")
+        raise ValueError(
+            f"result_columns needs one trajectory, got a batch (t has shape {t.shape}); index it first."
+        )
     mech = traj.mechanism
     benchmark = is_slider_crank(mech)
     cols = [Column("t", "s", "time", t)]
@@ -112,9 +125,24 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
         cols += body_columns(traj)
     if benchmark:
         cols += [
-            Column("slider_x", "m", "slider position along the guide (x)", np.asarray(traj.coordinates("slider"))[:, 0]),
-            Column("slider_v", "m/s", "slider velocity (x)", np.asarray(traj.velocities("slider"))[:, 0]),
-            Column("slider_a", "m/s^2", "slider acceleration (x)", np.asarray(traj.accelerations("slider"))[:, 0]),
+            Column(
+                "slider_x",
+                "m",
+                "slider position along the guide (x)",
+                np.asarray(traj.coordinates("slider"))[:, 0],
+            ),
+            Column(
+                "slider_v",
+                "m/s",
+                "slider velocity (x)",
+                np.asarray(traj.velocities("slider"))[:, 0],
+            ),
+            Column(
+                "slider_a",
+                "m/s^2",
+                "slider acceleration (x)",
+                np.asarray(traj.accelerations("slider"))[:, 0],
+            ),
         ]
     if mech.driver is not None:
         body = mech.driver.body
@@ -159,34 +187,74 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
             ]
         else:
             for k in range(lam.shape[1]):
-                cols.append(Column(f"{joint.name}_lambda{k}", "", f"Lagrange multiplier {k} of joint {joint.name!r}", lam[:, k]))
+                cols.append(
+                    Column(
+                        f"{joint.name}_lambda{k}",
+                        "",
+                        f"Lagrange multiplier {k} of joint {joint.name!r}",
+                        lam[:, k],
+                    )
+                )
     if traj.clearance:
         from .analysis import MODE_NAMES, trajectory_modes
         from .analysis._modes import DEFAULT_CONTINUOUS_FRACTION
 
         legend = ", ".join(f"{k} {v}" for k, v in MODE_NAMES.items())
-        fraction = DEFAULT_CONTINUOUS_FRACTION if continuous_fraction is None else continuous_fraction
+        fraction = (
+            DEFAULT_CONTINUOUS_FRACTION if continuous_fraction is None else continuous_fraction
+        )
         modes = trajectory_modes(traj, fraction)
         # traj.clearance comes back from JAX with its keys sorted; write the joints in the
         # mechanism's order and each joint's outputs in CLEARANCE_OUTPUTS order, then its mode.
         for name in clearance_joint_names(traj):
             outputs = traj.clearance[name]
-            keys = [k for k in CLEARANCE_OUTPUTS if k in outputs] + sorted(k for k in outputs if k not in CLEARANCE_OUTPUTS)
+            keys = [k for k in CLEARANCE_OUTPUTS if k in outputs] + sorted(
+                k for k in outputs if k not in CLEARANCE_OUTPUTS
+            )
             for key in keys:
                 value = np.asarray(outputs[key], dtype=float) + 0.0  # + 0.0: no '-0' in the CSV
                 unit, description = CLEARANCE_OUTPUTS.get(key, ("", key.replace("_", " ")))
                 if value.ndim == 1:
-                    cols.append(Column(f"{name}_{key}", unit, f"{description} at clearance joint {name!r}", value))
+                    cols.append(
+                        Column(
+                            f"{name}_{key}",
+                            unit,
+                            f"{description} at clearance joint {name!r}",
+                            value,
+                        )
+                    )
                 else:
                     flat = value.reshape(value.shape[0], -1)
                     for k in range(flat.shape[1]):
-                        cols.append(Column(f"{name}_{key}_{k}", unit, f"{description} [{k}] at clearance joint {name!r}", flat[:, k]))
+                        cols.append(
+                            Column(
+                                f"{name}_{key}_{k}",
+                                unit,
+                                f"{description} [{k}] at clearance joint {name!r}",
+                                flat[:, k],
+                            )
+                        )
             cols.append(
-                Column(f"{name}_mode", "", f"contact mode at clearance joint {name!r} ({legend})", modes[name].astype(float))
+                Column(
+                    f"{name}_mode",
+                    "",
+                    f"contact mode at clearance joint {name!r} ({legend})",
+                    modes[name].astype(float),
+                )
             )
     cols += [
-        Column("constraint_violation", "m", "max |Phi| over constraint rows (m or rad)", np.asarray(traj.constraint_violation)),
-        Column("velocity_violation", "m/s", "max |dPhi/dt| over constraint rows (m/s or rad/s)", np.asarray(traj.velocity_violation)),
+        Column(
+            "constraint_violation",
+            "m",
+            "max |Phi| over constraint rows (m or rad)",
+            np.asarray(traj.constraint_violation),
+        ),
+        Column(
+            "velocity_violation",
+            "m/s",
+            "max |dPhi/dt| over constraint rows (m/s or rad/s)",
+            np.asarray(traj.velocity_violation),
+        ),
     ]
     names = [c.name for c in cols]
     dupes = sorted({n for n in names if names.count(n) > 1})
@@ -227,8 +295,17 @@ def body_columns(traj) -> list[Column]:
 
 
 PER_INSTANT = (
-    "t", "q", "qd", "qdd", "internal_state", "multipliers", "input_torque", "reactions",
-    "constraint_violation", "velocity_violation", "clearance",
+    "t",
+    "q",
+    "qd",
+    "qdd",
+    "internal_state",
+    "multipliers",
+    "input_torque",
+    "reactions",
+    "constraint_violation",
+    "velocity_violation",
+    "clearance",
 )
 """``Trajectory`` fields with one entry per saved instant (as in ``Trajectory.truncated``)."""
 
@@ -238,7 +315,10 @@ def _select(traj, keep: np.ndarray):
     import jax
 
     index = np.flatnonzero(keep)
-    changes = {name: jax.tree_util.tree_map(lambda x: x[index], getattr(traj, name)) for name in PER_INSTANT}
+    changes = {
+        name: jax.tree_util.tree_map(lambda x: x[index], getattr(traj, name))
+        for name in PER_INSTANT
+    }
     return dataclasses.replace(traj, **changes)
 
 
@@ -287,7 +367,9 @@ def run_statistics(traj) -> dict[str, float]:
 def clearance_joint_names(traj) -> list[str]:
     """Names of the trajectory's clearance joints in the mechanism's order (O, A, B for the slider–crank)."""
     order = [j.name for j in getattr(traj.mechanism, "clearance_joints", ())]
-    return [n for n in order if n in traj.clearance] + sorted(n for n in traj.clearance if n not in order)
+    return [n for n in order if n in traj.clearance] + sorted(
+        n for n in traj.clearance if n not in order
+    )
 
 
 def column_map(traj) -> dict[str, Column]:
@@ -393,7 +475,9 @@ def column_summary(columns: list[Column]) -> dict:
     return out
 
 
-def write_results(out_dir: Path, traj, run_info: dict, continuous_fraction: float | None = None) -> dict[str, Path]:
+def write_results(
+    out_dir: Path, traj, run_info: dict, continuous_fraction: float | None = None
+) -> dict[str, Path]:
     """Write results.npz, results.csv and (last) run.json into ``out_dir``.
 
     Args:
@@ -408,7 +492,10 @@ def write_results(out_dir: Path, traj, run_info: dict, continuous_fraction: floa
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     columns = result_columns(traj, continuous_fraction)
-    paths = {"npz": write_npz(out_dir / NPZ_NAME, columns), "csv": write_csv(out_dir / CSV_NAME, columns)}
+    paths = {
+        "npz": write_npz(out_dir / NPZ_NAME, columns),
+        "csv": write_csv(out_dir / CSV_NAME, columns),
+    }
     info = dict(run_info)
     info["columns"] = column_summary(columns)
     info.setdefault("files", [])

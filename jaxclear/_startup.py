@@ -28,7 +28,9 @@ def ideal_mechanism(mechanism: Mechanism) -> Mechanism:
         RevoluteJoint(c.name, c.bearing_body, c.bearing_point, c.journal_body, c.journal_point)
         for c in mechanism.clearance_joints
     )
-    return dataclasses.replace(mechanism, joints=(*mechanism.joints, *replaced), clearance_joints=())
+    return dataclasses.replace(
+        mechanism, joints=(*mechanism.joints, *replaced), clearance_joints=()
+    )
 
 
 def wall_start(mechanism: Mechanism, t0: float = 0.0, *, num_points: int = 2) -> Mechanism:

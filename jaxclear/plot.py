@@ -43,8 +43,15 @@ QUANTITY_LABELS = {
 """Axis titles of the common quantities; other columns are labelled by their name."""
 
 BODY_LABELS = {
-    "x": "x", "y": "y", "phi": "angle", "vx": "velocity x", "vy": "velocity y", "omega": "angular velocity",
-    "ax": "acceleration x", "ay": "acceleration y", "alpha": "angular acceleration",
+    "x": "x",
+    "y": "y",
+    "phi": "angle",
+    "vx": "velocity x",
+    "vy": "velocity y",
+    "omega": "angular velocity",
+    "ax": "acceleration x",
+    "ay": "acceleration y",
+    "alpha": "angular acceleration",
 }
 """Axis titles of the per-body columns ``<body>_<output>`` of a general mechanism."""
 
@@ -67,7 +74,9 @@ REFERENCE_STYLE: dict[str, Any] = dict(color="0.55", linewidth=1.0, linestyle="-
 
 def _get(columns: dict[str, Column], quantity: str) -> Column:
     if quantity not in columns:
-        raise ValueError(f"unknown quantity {quantity!r}; this trajectory has: {', '.join(columns)}.")
+        raise ValueError(
+            f"unknown quantity {quantity!r}; this trajectory has: {', '.join(columns)}."
+        )
     return columns[quantity]
 
 
@@ -78,7 +87,9 @@ def _curve(traj, quantity: str, xaxis: str) -> tuple[Column, Column]:
         return columns["t"], _get(columns, quantity)
     mech = traj.mechanism
     if mech.driver is None:
-        raise ValueError("the mechanism has no driver, so there is no crank angle; use plot_vs_time.")
+        raise ValueError(
+            "the mechanism has no driver, so there is no crank angle; use plot_vs_time."
+        )
     return columns[f"{mech.driver.body}_angle"], _get(columns, quantity)
 
 
@@ -114,7 +125,7 @@ def _new_axes(ax):
 
 
 def _speed_label(traj) -> str:
-    """" — 5000 rpm" for a constant-speed driver, else ""."""
+    """ " — 5000 rpm" for a constant-speed driver, else ""."""
     speed = getattr(traj.mechanism.driver, "speed", None)
     try:
         rpm = float(np.asarray(speed)) * 60.0 / (2.0 * np.pi)
@@ -145,7 +156,9 @@ def _angle_ticks(ax, angle) -> None:
     span = float(np.ptp(angle))
     if 0 < span <= 1440:
         ax.xaxis.set_major_locator(MultipleLocator(90 if span > 180 else 30))
-    if span > 0:  # pad by a hair so ticks at the ends (720°) survive round-off in the integrated angle
+    if (
+        span > 0
+    ):  # pad by a hair so ticks at the ends (720°) survive round-off in the integrated angle
         pad = 1e-6 * span
         ax.set_xlim(angle.min() - pad, angle.max() + pad)
 
@@ -238,9 +251,20 @@ def plot_orbit(traj, joint: str, *, ax=None) -> Figure:
     fig, ax = _new_axes(ax)
     out = traj.clearance[joint]
     ex, ey = np.asarray(out["ecc_x"]) * 1e3, np.asarray(out["ecc_y"]) * 1e3
-    c = float(traj.mechanism.clearance_joints[[j.name for j in traj.mechanism.clearance_joints].index(joint)].geometry.clearance)
+    c = float(
+        traj.mechanism.clearance_joints[
+            [j.name for j in traj.mechanism.clearance_joints].index(joint)
+        ].geometry.clearance
+    )
     circle = np.linspace(0, 2 * np.pi, 361)
-    ax.plot(1e3 * c * np.cos(circle), 1e3 * c * np.sin(circle), color="k", linestyle="--", linewidth=1.0, label="clearance circle")
+    ax.plot(
+        1e3 * c * np.cos(circle),
+        1e3 * c * np.sin(circle),
+        color="k",
+        linestyle="--",
+        linewidth=1.0,
+        label="clearance circle",
+    )
     ax.plot(ex, ey, color="C0", linewidth=0.8, label="journal centre")
     contact = np.asarray(out["penetration"]) > 0
     ax.plot(ex[contact], ey[contact], ".", color="C3", markersize=2, label="in contact")
@@ -252,7 +276,9 @@ def plot_orbit(traj, joint: str, *, ax=None) -> Figure:
     ax.set_ylabel("Eccentricity y (mm)")
     ax.set_title(f"Journal-centre orbit at clearance joint {joint} (c = {c * 1e3:g} mm)")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small")  # beside the square axes, off the orbit
+    ax.legend(
+        loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small"
+    )  # beside the square axes, off the orbit
     return fig
 
 
@@ -266,11 +292,16 @@ def plot_contact_forces(traj, *, ax=None) -> Figure:
     fig, ax = _new_axes(ax)
     for k, name in enumerate(clearance_joint_names(traj)):
         angle, force = _curve(traj, f"{name}_normal_force", "angle")
-        ax.plot(angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}")
+        ax.plot(
+            angle.values, force.values / 1e3, color=f"C{k}", linewidth=1.0, label=f"joint {name}"
+        )
         if traj.extremes is not None:
             peak = float(traj.extremes.normal_force_max[name]) / 1e3
             ax.axhline(
-                peak, color=f"C{k}", linestyle=":", linewidth=1.0,
+                peak,
+                color=f"C{k}",
+                linestyle=":",
+                linewidth=1.0,
                 label=f"joint {name} peak from the solver's steps, {peak:.3g} kN",
             )
         _angle_ticks(ax, angle.values)
@@ -315,7 +346,10 @@ def standard_plots(traj) -> list[tuple[str, str, str]]:
     plots = [(f"{driven}_torque.png", f"{driven}_torque", "angle")]
     for body in mech.body_names:
         if body != driven:
-            plots += [(f"{body}_angle.png", f"{body}_phi", "angle"), (f"{body}_angular_acceleration.png", f"{body}_alpha", "angle")]
+            plots += [
+                (f"{body}_angle.png", f"{body}_phi", "angle"),
+                (f"{body}_angular_acceleration.png", f"{body}_alpha", "angle"),
+            ]
     return plots + [("constraint_violation.png", "constraint_violation", "time")]
 
 
@@ -365,7 +399,11 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
             fig = plot_vs_time(traj, quantity, reference=reference)
         written.append(_save(fig, out_dir, filename, dpi))
     mech = traj.mechanism
-    if mech.driver is not None and not is_slider_crank(mech) and any(isinstance(j, RevoluteJoint) for j in mech.joints):
+    if (
+        mech.driver is not None
+        and not is_slider_crank(mech)
+        and any(isinstance(j, RevoluteJoint) for j in mech.joints)
+    ):
         written.append(_save(plot_joint_forces(traj), out_dir, "joint_forces.png", dpi))
     if traj.clearance and traj.mechanism.driver is not None:
         written.append(_save(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))

@@ -32,10 +32,26 @@ from jaxclear.friction import FRICTION_LAWS, LuGre
 # Short horizon, shared by every simulating test here and in test_plot.py: the same number of output
 # points and solver settings compile once per process (the clearance run's ideal-joint reference
 # curve reuses the compilation of the ideal runs).
-SHORT = ["--revolutions", "0.25", "--skip-revolutions", "0", "--points-per-revolution", "360", "--no-progress", "--quiet"]
+SHORT = [
+    "--revolutions",
+    "0.25",
+    "--skip-revolutions",
+    "0",
+    "--points-per-revolution",
+    "360",
+    "--no-progress",
+    "--quiet",
+]
 NUM_POINTS = 91  # 0.25 rev x 360 points/rev = 90 intervals
 IDEAL = ["--clearance-joints", "none"]
-CHEAP_CLEARANCE = ["--clearance-joints", "B", "--contact", "lankarani-nikravesh", "--friction", "none"]
+CHEAP_CLEARANCE = [
+    "--clearance-joints",
+    "B",
+    "--contact",
+    "lankarani-nikravesh",
+    "--friction",
+    "none",
+]
 CLEARANCE = 5e-4  # m, the default radial clearance
 MAX_PENETRATION = 150e-6  # m: generous bound on the penetration of a steel pin at 5000 rpm
 CRANK, ROD = 0.05, 0.12  # m, slider_crank defaults
@@ -70,7 +86,13 @@ CLEARANCE_OUTPUTS = [  # per clearance joint, in file order; friction_state only
     "impact_velocity",
     "mode",
 ]
-STANDARD_PNGS = ["slider_position.png", "slider_velocity.png", "slider_acceleration.png", "crank_torque.png", "constraint_violation.png"]
+STANDARD_PNGS = [
+    "slider_position.png",
+    "slider_velocity.png",
+    "slider_acceleration.png",
+    "crank_torque.png",
+    "constraint_violation.png",
+]
 
 
 def closed_form_slider_x(angle_rad):
@@ -152,7 +174,9 @@ def test_defaults_are_three_clearance_joints():
     settings = resolve_settings(build_parser().parse_args(["run"]))
     assert settings.sources[("clearance", "joints")] == "default"
     mechanism = build_mechanism(settings)
-    assert solver_for(settings, mechanism).method == "kencarp5"  # auto with LuGre -> imex (measured)
+    assert (
+        solver_for(settings, mechanism).method == "kencarp5"
+    )  # auto with LuGre -> imex (measured)
     coulomb = resolve_settings(build_parser().parse_args(["run", "--friction", "coulomb"]))
     assert solver_for(coulomb, build_mechanism(coulomb)).method == "tsit5"  # auto otherwise -> fast
     joints = mechanism.clearance_joints
@@ -174,7 +198,9 @@ def test_clearance_columns(clearance_run):
     with np.load(clearance_run / "results.npz") as npz:
         cols = {name: npz[name] for name in npz.files}
     assert sorted(cols) == sorted(header)
-    ideal = [c for c in EXPECTED_COLUMNS if c not in ("B_Fx", "B_Fy")]  # B is no longer an ideal joint
+    ideal = [
+        c for c in EXPECTED_COLUMNS if c not in ("B_Fx", "B_Fy")
+    ]  # B is no longer an ideal joint
     tail = ["constraint_violation", "velocity_violation"]
     assert header == ideal[: -len(tail)] + [f"B_{k}" for k in CLEARANCE_OUTPUTS] + tail
     assert cols["t"].shape == (NUM_POINTS,)
@@ -234,7 +260,11 @@ def test_config_file_and_override(tmp_path):
     _, cols = read_csv(out / "results.csv")
     assert cols["t"][-1] == pytest.approx(0.25 * 60 / 4000)
     assert cols["crank_angle"][0] == pytest.approx(math.degrees(0.5))
-    np.testing.assert_allclose(cols["slider_x"], closed_form_slider_x(np.radians(cols["crank_angle"])), atol=POSITION_TOLERANCE)
+    np.testing.assert_allclose(
+        cols["slider_x"],
+        closed_form_slider_x(np.radians(cols["crank_angle"])),
+        atol=POSITION_TOLERANCE,
+    )
 
 
 def test_help_lists_options_and_keys(capsys):
@@ -249,7 +279,9 @@ def test_help_lists_options_and_keys(capsys):
     for flag in ("--no-progress", "--quiet", "--no-gravity", "rev/min"):
         assert flag in text
     # The defaults: three clearance joints, hybrid contact, LuGre friction; every law name listed.
-    flat = " ".join(re.sub(r"-\n\s*", "-", text).split())  # argparse wraps to the terminal, also at hyphens
+    flat = " ".join(
+        re.sub(r"-\n\s*", "-", text).split()
+    )  # argparse wraps to the terminal, also at hyphens
     assert "--clearance-joints LIST" in flat
     assert "(default: slider_crank O,A,B, four_bar none, custom none)" in flat
     assert "(default: hybrid)" in flat
@@ -285,28 +317,67 @@ BAD_CONFIGS = {
     "negative in file": ("[mechanism]\nrod_mass = -1.0\n", "must be positive"),
     "unknown solver": ('[solver]\nmethod = "euler"\n', "solver 'euler' is unknown"),
     "rod too short": ("[mechanism]\nrod_length = 0.04\n", "rod_length > crank_length"),
-    "LuGre key with Coulomb": ('[clearance]\nfriction = "coulomb"\nstatic_friction = 0.2\n', "applies to the lugre friction law only"),
-    "unknown clearance key": ("[clearance]\nradius = 0.01\n", "unknown key 'radius' in [clearance]"),
+    "LuGre key with Coulomb": (
+        '[clearance]\nfriction = "coulomb"\nstatic_friction = 0.2\n',
+        "applies to the lugre friction law only",
+    ),
+    "unknown clearance key": (
+        "[clearance]\nradius = 0.01\n",
+        "unknown key 'radius' in [clearance]",
+    ),
     "clearance joints not a string": ('[clearance]\njoints = ["B"]\n', "must be a string"),
-    "unknown contact law in file": ('[clearance]\ncontact = "hertzian"\n', "is unknown; choose one of"),
+    "unknown contact law in file": (
+        '[clearance]\ncontact = "hertzian"\n',
+        "is unknown; choose one of",
+    ),
     "non-integer elements": ("[clearance]\nelements = 2.5\n", "must be an integer"),
     # issue 9 item 7
-    "continuous fraction above one": ("[clearance]\ncontinuous_fraction = 1.5\n", "continuous_fraction in"),
+    "continuous fraction above one": (
+        "[clearance]\ncontinuous_fraction = 1.5\n",
+        "continuous_fraction in",
+    ),
     "empty clearance joints in file": ('[clearance]\njoints = ""\n', "use 'none' for ideal joints"),
     "implausible rpm in file": ("[mechanism]\nrpm = 1e9\n", "is implausible (at most 100000"),
     # start-up options
     "unknown start": ('[simulation]\nstart = "middle"\n', "must be one of wall, centred"),
-    "skip all revolutions": ("[simulation]\nrevolutions = 1\nskip_revolutions = 1\n", "must be smaller than revolutions"),
+    "skip all revolutions": (
+        "[simulation]\nrevolutions = 1\nskip_revolutions = 1\n",
+        "must be smaller than revolutions",
+    ),
     # per-joint clearance tables and mechanism choice
-    "per-joint table of an ideal joint": ('[clearance]\njoints = "B"\n[clearance.A]\nclearance = 1e-4\n', "[clearance.A]"),
-    "per-joint table of an unknown joint": ('[clearance.C]\nclearance = 1e-4\n', "joint 'C' is not a joint of the mechanism"),
-    "unknown per-joint key": ("[clearance.B]\nradius = 0.01\n", "unknown key 'radius' in [clearance.B]"),
-    "journal body not of the joint": ('[clearance.B]\njournal_body = "crank"\n', "journal_body='crank' is not a body of joint 'B'"),
+    "per-joint table of an ideal joint": (
+        '[clearance]\njoints = "B"\n[clearance.A]\nclearance = 1e-4\n',
+        "[clearance.A]",
+    ),
+    "per-joint table of an unknown joint": (
+        "[clearance.C]\nclearance = 1e-4\n",
+        "joint 'C' is not a joint of the mechanism",
+    ),
+    "unknown per-joint key": (
+        "[clearance.B]\nradius = 0.01\n",
+        "unknown key 'radius' in [clearance.B]",
+    ),
+    "journal body not of the joint": (
+        '[clearance.B]\njournal_body = "crank"\n',
+        "journal_body='crank' is not a body of joint 'B'",
+    ),
     "journal body shared": ('[clearance]\njournal_body = "rod"\n', "belongs in a per-joint table"),
-    "clearance on a translational joint": ('[clearance]\njoints = "slider_guide"\n', "'slider_guide' is a TranslationalJoint; clearance applies to revolute joints only"),
-    "key of another mechanism": ('[mechanism]\nname = "four_bar"\nrod_length = 0.2\n', "rod_length in '{path}' applies to slider_crank only"),
-    "unknown mechanism": ('[mechanism]\nname = "crank_rocker"\n', "must be one of slider_crank, four_bar, custom"),
-    "four-bar that cannot close": ('[mechanism]\nname = "four_bar"\nground_length = 2.0\n', "the mechanism cannot be assembled"),
+    "clearance on a translational joint": (
+        '[clearance]\njoints = "slider_guide"\n',
+        "'slider_guide' is a TranslationalJoint; clearance applies to revolute joints only",
+    ),
+    "key of another mechanism": (
+        '[mechanism]\nname = "four_bar"\nrod_length = 0.2\n',
+        "rod_length in '{path}' applies to slider_crank only",
+    ),
+    "unknown mechanism": (
+        '[mechanism]\nname = "crank_rocker"\n',
+        "must be one of slider_crank, four_bar, custom",
+    ),
+    "four-bar that cannot close": (
+        '[mechanism]\nname = "four_bar"\nground_length = 2.0\n',
+        "the mechanism cannot be assembled",
+    ),
     "four-bar joint on the slider-crank": ('[clearance]\njoints = "O4"\n', "among O, A, B"),
 }
 BAD_OPTIONS = {
@@ -321,27 +392,57 @@ BAD_OPTIONS = {
     "zero max steps": (["--max-steps", "0"], "must be positive"),
     "unknown solver": (["--solver", "euler"], "solver 'euler' is unknown"),
     "missing config": (["does-not-exist.toml"], "not found"),
-    "unknown clearance joint": (["--clearance-joints", "C"], "--clearance-joints must list distinct joints among O, A, B"),
+    "unknown clearance joint": (
+        ["--clearance-joints", "C"],
+        "--clearance-joints must list distinct joints among O, A, B",
+    ),
     "repeated clearance joint": (["--clearance-joints", "B,B"], "distinct joints"),
-    "unknown contact law": (["--contact", "hertzian"], "--contact: contact law 'hertzian' is unknown; choose one of hertz, lankarani-nikravesh"),
-    "unknown friction law": (["--friction", "stribeck"], "choose one of none, coulomb, modified-coulomb, lugre"),
+    "unknown contact law": (
+        ["--contact", "hertzian"],
+        "--contact: contact law 'hertzian' is unknown; choose one of hertz, lankarani-nikravesh",
+    ),
+    "unknown friction law": (
+        ["--friction", "stribeck"],
+        "choose one of none, coulomb, modified-coulomb, lugre",
+    ),
     "zero clearance": (["--clearance", "0"], "--clearance must be positive"),
     "negative clearance": (["--clearance", "-0.0005"], "--clearance must be positive"),
     "negative clearance, exponent": (["--clearance=-5e-4"], "--clearance must be positive"),
-    "clearance above bearing radius": (["--clearance", "0.02"], "must be smaller than bearing_radius"),
+    "clearance above bearing radius": (
+        ["--clearance", "0.02"],
+        "must be smaller than bearing_radius",
+    ),
     "restitution above one": (["--restitution", "1.5"], "restitution must be in (0, 1], got 1.5"),
     "zero restitution": (["--restitution", "0"], "--restitution must be positive"),
-    "negative friction coefficient": (["--friction-coefficient", "-0.1"], "must be zero or positive"),
-    "friction coefficient without friction": (["--friction", "none", "--friction-coefficient", "0.1"], "does not apply"),
+    "negative friction coefficient": (
+        ["--friction-coefficient", "-0.1"],
+        "must be zero or positive",
+    ),
+    "friction coefficient without friction": (
+        ["--friction", "none", "--friction-coefficient", "0.1"],
+        "does not apply",
+    ),
     # issue 9 item 7
-    "empty clearance joints": (["--clearance-joints="], "--clearance-joints is empty; use 'none' for ideal joints"),
+    "empty clearance joints": (
+        ["--clearance-joints="],
+        "--clearance-joints is empty; use 'none' for ideal joints",
+    ),
     "empty output folder": (["--out="], "--out is empty; give the path of an output folder"),
     "implausible rpm": (["--rpm", "1e9"], "--rpm = 1e+09 rev/min is implausible (at most 100000"),
     "negative skip": (["--skip-revolutions", "-1"], "--skip-revolutions must be zero or positive"),
-    "skip beyond the run": (["--revolutions", "1", "--skip-revolutions", "2"], "--skip-revolutions: skip_revolutions (2) must be smaller"),
+    "skip beyond the run": (
+        ["--revolutions", "1", "--skip-revolutions", "2"],
+        "--skip-revolutions: skip_revolutions (2) must be smaller",
+    ),
     "unknown start": (["--start", "middle"], "--start must be one of wall, centred"),
-    "unknown mechanism": (["--mechanism", "crank_rocker"], "--mechanism must be one of slider_crank, four_bar, custom"),
-    "four-bar clearance joint names": (["--mechanism", "four_bar", "--clearance-joints", "O"], "among O2, A, B, O4"),
+    "unknown mechanism": (
+        ["--mechanism", "crank_rocker"],
+        "--mechanism must be one of slider_crank, four_bar, custom",
+    ),
+    "four-bar clearance joint names": (
+        ["--mechanism", "four_bar", "--clearance-joints", "O"],
+        "among O2, A, B, O4",
+    ),
 }
 
 
@@ -364,15 +465,21 @@ def test_bad_config_file(case, tmp_path, capsys):
     config.write_text(text)
     # no other options: the file alone decides (these cases fail before any solve)
     match = match.replace("{path}", str(config))
-    assert_usage_error(capsys, ["run", str(config), "--no-progress", "--out", str(tmp_path / "out")], match)
+    assert_usage_error(
+        capsys, ["run", str(config), "--no-progress", "--out", str(tmp_path / "out")], match
+    )
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("case", list(BAD_OPTIONS))
 def test_bad_option(case, tmp_path, capsys):
     args, match = BAD_OPTIONS[case]
-    assert_usage_error(capsys, ["run", "--out", str(tmp_path / "out"), *args], match)  # args last: '--out=' wins
-    assert not (tmp_path / "out").exists(), "bad input must be found before the output folder is made"
+    assert_usage_error(
+        capsys, ["run", "--out", str(tmp_path / "out"), *args], match
+    )  # args last: '--out=' wins
+    assert not (tmp_path / "out").exists(), (
+        "bad input must be found before the output folder is made"
+    )
 
 
 def test_no_command(capsys):
@@ -388,7 +495,9 @@ def test_out_is_a_file(tmp_path, capsys):
 def test_simulation_failure_exits_1(tmp_path, capsys, monkeypatch):
     # A failing solve is simulated (a real one needs new solver settings, i.e. another compilation).
     def failing(*args, **kwargs):
-        raise jaxclear.SimulationError("simulation failed at t = 0.001 s after 3 steps.\nSuggested fix: raise max_steps.")
+        raise jaxclear.SimulationError(
+            "simulation failed at t = 0.001 s after 3 steps.\nSuggested fix: raise max_steps."
+        )
 
     monkeypatch.setattr(jaxclear, "simulate", failing)
     with pytest.raises(SystemExit) as exc:
@@ -425,7 +534,9 @@ def test_unexpected_error_is_one_line(tmp_path, capsys, monkeypatch):
         cli.main(["run", *SHORT, "--start", "centred", "--out", str(tmp_path / "out")])
     assert exc.value.code == 1
     lines = capsys.readouterr().err.splitlines()
-    assert lines == ["jaxclear: error: RuntimeError: something unexpected (set JAXCLEAR_TRACEBACK=1 for the traceback)"]
+    assert lines == [
+        "jaxclear: error: RuntimeError: something unexpected (set JAXCLEAR_TRACEBACK=1 for the traceback)"
+    ]
 
 
 def test_empty_output_folder_in_file(tmp_path, capsys, monkeypatch):
@@ -438,15 +549,25 @@ def test_empty_output_folder_in_file(tmp_path, capsys, monkeypatch):
 
 def test_non_utf8_config(tmp_path, capsys):
     config = tmp_path / "latin1.toml"
-    config.write_bytes("# Kurbeltrieb, Drehzahl in 1/min (Gleitlager aus Stahl, \u00e4)\n[mechanism]\nrpm = 3000\n".encode("latin-1"))
-    assert_usage_error(capsys, ["run", str(config), "--out", str(tmp_path / "out")], "is not UTF-8 text (byte 0xe4 on line 1)")
+    config.write_bytes(
+        "# Kurbeltrieb, Drehzahl in 1/min (Gleitlager aus Stahl, \u00e4)\n[mechanism]\nrpm = 3000\n".encode(
+            "latin-1"
+        )
+    )
+    assert_usage_error(
+        capsys,
+        ["run", str(config), "--out", str(tmp_path / "out")],
+        "is not UTF-8 text (byte 0xe4 on line 1)",
+    )
     assert not (tmp_path / "out").exists()
 
 
 def test_output_folder_under_a_file(tmp_path, capsys):
     (tmp_path / "file").write_text("x")
     out = tmp_path / "file" / "out"
-    assert_usage_error(capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], "is not writable (Not a directory)")
+    assert_usage_error(
+        capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], "is not writable (Not a directory)"
+    )
 
 
 def test_read_only_output_folder(tmp_path, capsys, monkeypatch):
@@ -461,7 +582,11 @@ def test_read_only_output_folder(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(jaxclear.cli._run.tempfile, "mkstemp", refuse)
     monkeypatch.setattr(jaxclear, "simulate", no_solve)
     out = tmp_path / "out"
-    assert_usage_error(capsys, ["run", *SHORT, *IDEAL, "--out", str(out)], f"--out {str(out)!r} is not writable (Permission denied)")
+    assert_usage_error(
+        capsys,
+        ["run", *SHORT, *IDEAL, "--out", str(out)],
+        f"--out {str(out)!r} is not writable (Permission denied)",
+    )
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
@@ -482,7 +607,11 @@ def test_max_steps_one_fails_cleanly(tmp_path, capsys):
         cli.main(["run", *SHORT, *IDEAL, "--max-steps", "1", "--out", str(out)])
     assert exc.value.code == 1
     lines = capsys.readouterr().err.splitlines()
-    assert len(lines) == 1 and "maximum number of solver steps" in lines[0] and "raise max_steps" in lines[0], lines
+    assert (
+        len(lines) == 1
+        and "maximum number of solver steps" in lines[0]
+        and "raise max_steps" in lines[0]
+    ), lines
     info = json.loads((out / "run.json").read_text())
     assert info["status"] == "failed" and "raise max_steps" in info["error"]
     # One (rejected) step reaches no saved instant with finite values: only run.json is written.
@@ -502,7 +631,9 @@ def test_import_starts_no_jax_backend():
         "jnp.zeros(1).block_until_ready()\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
     assert result.returncode != 0, "the flag was ignored: the backend had started during the import"
     assert "xla_jaxclear_no_such_flag" in result.stderr
 
@@ -526,14 +657,24 @@ def test_per_joint_clearance_tables():
     assert (joints["B"].journal_body, joints["B"].bearing_body) == ("rod", "slider")
     np.testing.assert_allclose(joints["B"].journal_point, [ROD / 2, 0.0])
     assert (joints["A"].bearing_body, joints["A"].journal_body) == ("crank", "rod")
-    assert isinstance(joints["A"].contact_law, Hybrid) and isinstance(joints["B"].friction_law, LuGre)
+    assert isinstance(joints["A"].contact_law, Hybrid) and isinstance(
+        joints["B"].friction_law, LuGre
+    )
 
 
 def test_flag_overrides_clearance_list_and_per_joint_tables():
-    settings = settings_of(str(EXAMPLES / "slider_crank_pin_on_rod.toml"), "--clearance-joints", "B", "--clearance", "3e-4")
+    settings = settings_of(
+        str(EXAMPLES / "slider_crank_pin_on_rod.toml"),
+        "--clearance-joints",
+        "B",
+        "--clearance",
+        "3e-4",
+    )
     (joint,) = build_mechanism(settings).clearance_joints
     assert joint.name == "B" and joint.journal_body == "rod"
-    assert float(joint.geometry.clearance) == pytest.approx(1.0e-4)  # the per-joint table beats the shared flag
+    assert float(joint.geometry.clearance) == pytest.approx(
+        1.0e-4
+    )  # the per-joint table beats the shared flag
 
 
 def test_four_bar_by_name():
@@ -579,24 +720,54 @@ body = "arm"
 """
 
 BAD_DESCRIPTIONS = {
-    "unknown body": (('between = ["ground.O", "arm.O"]', 'between = ["ground.O", "amr.O"]'), "[joints.O] between: unknown body 'amr'"),
-    "joint to itself": (('between = ["ground.O", "arm.O"]', 'between = ["arm.tip", "arm.O"]'), "[joints.O] between: connects body 'arm' to itself"),
-    "missing point": (('between = ["ground.O", "arm.O"]', 'between = ["ground.P", "arm.O"]'), "missing point 'P' on 'ground'"),
+    "unknown body": (
+        ('between = ["ground.O", "arm.O"]', 'between = ["ground.O", "amr.O"]'),
+        "[joints.O] between: unknown body 'amr'",
+    ),
+    "joint to itself": (
+        ('between = ["ground.O", "arm.O"]', 'between = ["arm.tip", "arm.O"]'),
+        "[joints.O] between: connects body 'arm' to itself",
+    ),
+    "missing point": (
+        ('between = ["ground.O", "arm.O"]', 'between = ["ground.P", "arm.O"]'),
+        "missing point 'P' on 'ground'",
+    ),
     "unknown key": (("mass = 1.0", "mass = 1.0\ncolour = 1"), "[bodies.arm]: unknown key 'colour'"),
     "missing key": (("inertia = 1e-3\n", ""), "[bodies.arm]: missing key 'inertia'"),
     "negative mass": (("mass = 1.0", "mass = -1.0"), "[bodies.arm] mass: must be positive"),
-    "pose not three numbers": (("position = [0.05, 0.0, 0.0]", "position = [0.05, 0.0]"), "[bodies.arm] position: must be a list of 3 numbers"),
-    "unknown joint type": (('type = "revolute"', 'type = "hinge"'), "[joints.O] type: must be \"revolute\" or \"translational\""),
+    "pose not three numbers": (
+        ("position = [0.05, 0.0, 0.0]", "position = [0.05, 0.0]"),
+        "[bodies.arm] position: must be a list of 3 numbers",
+    ),
+    "unknown joint type": (
+        ('type = "revolute"', 'type = "hinge"'),
+        '[joints.O] type: must be "revolute" or "translational"',
+    ),
     "no driver": (('[driver]\nbody = "arm"\n', ""), "[driver]: missing"),
-    "driver on unknown body": (('body = "arm"', 'body = "rotor"'), "[driver] body: unknown body 'rotor'"),
+    "driver on unknown body": (
+        ('body = "arm"', 'body = "rotor"'),
+        "[driver] body: unknown body 'rotor'",
+    ),
     "clearance on a translational joint": (
         ('type = "revolute"', 'type = "translational"'),
         "joint 'O' is a TranslationalJoint; clearance applies to revolute joints only",
     ),
-    "over-constrained": (("O = [-0.05, 0.0]", "O = [-0.20, 0.0]\nfar = [0.0, 0.0]"), "the mechanism cannot be assembled"),
-    "spring to an unknown point": (('[driver]', '[springs.k]\nbetween = ["ground.O", "arm.knob"]\nstiffness = 10.0\n[driver]'), "[springs.k] between: missing point 'knob' on 'arm'"),
-    "load of unknown type": (('[driver]', '[loads.F]\ntype = "pressure"\n[driver]'), "[loads.F] type: must be \"force\" or \"torque\""),
-    "name is not custom": (("[mechanism]", '[mechanism]\nname = "four_bar"'), "describe a custom mechanism"),
+    "over-constrained": (
+        ("O = [-0.05, 0.0]", "O = [-0.20, 0.0]\nfar = [0.0, 0.0]"),
+        "the mechanism cannot be assembled",
+    ),
+    "spring to an unknown point": (
+        ("[driver]", '[springs.k]\nbetween = ["ground.O", "arm.knob"]\nstiffness = 10.0\n[driver]'),
+        "[springs.k] between: missing point 'knob' on 'arm'",
+    ),
+    "load of unknown type": (
+        ("[driver]", '[loads.F]\ntype = "pressure"\n[driver]'),
+        '[loads.F] type: must be "force" or "torque"',
+    ),
+    "name is not custom": (
+        ("[mechanism]", '[mechanism]\nname = "four_bar"'),
+        "describe a custom mechanism",
+    ),
     "no rpm": (("rpm = 600", ""), "[mechanism] rpm is required for a custom mechanism"),
 }
 
@@ -624,7 +795,14 @@ def test_docs_reference_is_current():
 
 
 PEAK_TOLERANCE = 0.01  # issue 9: a peak from the solve moves < 1 % between output grids
-STATISTICS = ["B_peak_normal_force", "B_peak_penetration", "peak_slider_acceleration", "crank_torque_rms", "crank_torque_min", "crank_torque_max"]
+STATISTICS = [
+    "B_peak_normal_force",
+    "B_peak_penetration",
+    "peak_slider_acceleration",
+    "crank_torque_rms",
+    "crank_torque_min",
+    "crank_torque_max",
+]
 
 
 def test_run_json_statistics(clearance_run, ideal_run):
@@ -632,7 +810,10 @@ def test_run_json_statistics(clearance_run, ideal_run):
     statistics = info["statistics"]
     for name in STATISTICS:
         assert math.isfinite(statistics[name]), name
-    assert statistics["statistics_start"] == 0.0 and info["kept_window_s"] == [0.0, pytest.approx(0.25 * 60 / 5000)]
+    assert statistics["statistics_start"] == 0.0 and info["kept_window_s"] == [
+        0.0,
+        pytest.approx(0.25 * 60 / 5000),
+    ]
     _, cols = read_csv(clearance_run / "results.csv")
     # From the solver's step ends, not the grid: a grid value interpolated inside a step may lie a
     # little beyond them, so the grid's extremes are matched within PEAK_TOLERANCE.
@@ -648,7 +829,9 @@ def test_run_json_statistics(clearance_run, ideal_run):
 def test_skipped_revolutions(tmp_path, clearance_run):
     """--skip-revolutions: the CSV keeps every instant; statistics, mode shares and plots start later."""
     out = tmp_path / "out"
-    short = [a if a != "0" else "0.125" for a in SHORT]  # skip the first half of the quarter revolution
+    short = [
+        a if a != "0" else "0.125" for a in SHORT
+    ]  # skip the first half of the quarter revolution
     assert short != SHORT
     assert cli.main(["run", *CHEAP_CLEARANCE, *short, "--out", str(out)]) == 0
     info = json.loads((out / "run.json").read_text())
@@ -668,19 +851,36 @@ def test_skipped_revolutions(tmp_path, clearance_run):
     [
         "custom_mechanism.toml",
         pytest.param("four_bar_two_clearances.toml", marks=pytest.mark.slow),
-        pytest.param("slider_crank_pin_on_rod.toml", marks=pytest.mark.slow),  # hybrid + LuGre: a long compilation
+        pytest.param(
+            "slider_crank_pin_on_rod.toml", marks=pytest.mark.slow
+        ),  # hybrid + LuGre: a long compilation
     ],
 )
 def test_examples_run(example, tmp_path):
     out = tmp_path / "out"
-    argv = ["run", str(EXAMPLES / example), "--revolutions", "0.05", "--skip-revolutions", "0", "--no-progress", "--quiet"]
+    argv = [
+        "run",
+        str(EXAMPLES / example),
+        "--revolutions",
+        "0.05",
+        "--skip-revolutions",
+        "0",
+        "--no-progress",
+        "--quiet",
+    ]
     assert cli.main([*argv, "--out", str(out)]) == 0
     info = json.loads((out / "run.json").read_text())
     assert info["status"] == "complete" and info["clearance_joints"]
     for name in info["clearance_joints"]:
         eccentricity = np.asarray(info["initial_eccentricity"][name])
-        clearance = info["clearance_per_joint"].get(name, {}).get("clearance", info["config"]["clearance"]["clearance"])
-        expected = clearance if info["config"]["simulation"]["start"] == "wall" else 0.0  # on the wall, or centred
+        clearance = (
+            info["clearance_per_joint"]
+            .get(name, {})
+            .get("clearance", info["config"]["clearance"]["clearance"])
+        )
+        expected = (
+            clearance if info["config"]["simulation"]["start"] == "wall" else 0.0
+        )  # on the wall, or centred
         np.testing.assert_allclose(np.linalg.norm(eccentricity), expected, rtol=1e-9, atol=1e-15)
         assert math.isfinite(info["statistics"][f"{name}_peak_normal_force"])
     header, cols = read_csv(out / "results.csv")
@@ -688,9 +888,14 @@ def test_examples_run(example, tmp_path):
     if mechanism == "slider_crank":
         assert "slider_a" in header and "rod_x" not in header
     else:
-        bodies = {"custom": ("crank", "block", "lever"), "four_bar": ("crank", "coupler", "rocker")}[mechanism]
+        bodies = {
+            "custom": ("crank", "block", "lever"),
+            "four_bar": ("crank", "coupler", "rocker"),
+        }[mechanism]
         for body in bodies:
-            assert {f"{body}_{k}" for k in ("x", "y", "phi", "ax", "ay", "alpha")} <= set(header), body
+            assert {f"{body}_{k}" for k in ("x", "y", "phi", "ax", "ay", "alpha")} <= set(header), (
+                body
+            )
     for name in header:
         assert np.all(np.isfinite(cols[name])), name
     assert (out / "constraint_violation.png").exists() and (out / "normal_force.png").exists()

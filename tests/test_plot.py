@@ -19,7 +19,9 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def _simulate(mechanism):
-    return jaxclear.simulate(mechanism, REVOLUTIONS * 60 / RPM, num_points=NUM_POINTS, solver="fast")
+    return jaxclear.simulate(
+        mechanism, REVOLUTIONS * 60 / RPM, num_points=NUM_POINTS, solver="fast"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +32,11 @@ def traj():
 @pytest.fixture(scope="module")
 def clearance_traj():
     mechanism = jaxclear.mechanisms.slider_crank(
-        rpm=RPM, clearance_joints="B", clearance=CLEARANCE, contact_law=LankaraniNikravesh(), friction_law=NoFriction()
+        rpm=RPM,
+        clearance_joints="B",
+        clearance=CLEARANCE,
+        contact_law=LankaraniNikravesh(),
+        friction_law=NoFriction(),
     )
     return _simulate(mechanism)
 
@@ -53,7 +59,9 @@ def test_save_standard_plots(traj, tmp_path):
 def test_save_standard_plots_with_clearance(clearance_traj, traj, tmp_path):
     paths = plot.save_standard_plots(clearance_traj, tmp_path / "plots", reference=traj)
     names = sorted(p.name for p in paths)
-    assert names == sorted([name for name, _, _ in plot.STANDARD_PLOTS] + ["normal_force.png", "orbit_B.png"])
+    assert names == sorted(
+        [name for name, _, _ in plot.STANDARD_PLOTS] + ["normal_force.png", "orbit_B.png"]
+    )
     for path in paths:
         _check_png(path)
     assert not list((tmp_path / "plots").glob(".*")), "temporary files left behind"
@@ -86,8 +94,12 @@ def test_ideal_reference_behind_clearance_run(clearance_traj, traj):
     fig = plot.plot_vs_crank_angle(clearance_traj, "slider_a", reference=traj)
     reference, main = fig.axes[0].get_lines()
     assert reference.get_linestyle() == "--" and reference.get_zorder() < main.get_zorder()
-    np.testing.assert_allclose(reference.get_ydata(), np.asarray(traj.accelerations("slider"))[:, 0])
-    np.testing.assert_allclose(main.get_ydata(), np.asarray(clearance_traj.accelerations("slider"))[:, 0])
+    np.testing.assert_allclose(
+        reference.get_ydata(), np.asarray(traj.accelerations("slider"))[:, 0]
+    )
+    np.testing.assert_allclose(
+        main.get_ydata(), np.asarray(clearance_traj.accelerations("slider"))[:, 0]
+    )
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == ["ideal joints", "this run"]
 
@@ -109,11 +121,15 @@ def test_contact_force_plot(clearance_traj):
     fig = plot.plot_contact_forces(clearance_traj)
     ax = fig.axes[0]
     line, peak = ax.get_lines()
-    np.testing.assert_allclose(line.get_ydata(), np.asarray(clearance_traj.clearance["B"]["normal_force"]) / 1e3)  # kN
+    np.testing.assert_allclose(
+        line.get_ydata(), np.asarray(clearance_traj.clearance["B"]["normal_force"]) / 1e3
+    )  # kN
     # the dotted line: the peak from the solver's steps, at or above every saved instant
     peak_kn = float(clearance_traj.extremes.normal_force_max["B"]) / 1e3
     np.testing.assert_allclose(peak.get_ydata(), [peak_kn, peak_kn])
-    assert peak_kn >= 0.999 * np.max(line.get_ydata())  # 0.1 %: the sampled peak estimate (tests/test_statistics.py)
+    assert peak_kn >= 0.999 * np.max(
+        line.get_ydata()
+    )  # 0.1 %: the sampled peak estimate (tests/test_statistics.py)
     assert "kN" in ax.get_ylabel()
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert labels[0] == "joint B" and labels[1].startswith("joint B peak from the solver's steps")
@@ -131,9 +147,12 @@ def test_window_keeps_the_later_instants(clearance_traj):
     start = t[NUM_POINTS // 2]
     kept = window(clearance_traj, start)
     np.testing.assert_array_equal(np.asarray(kept.t), t[NUM_POINTS // 2 :])
-    np.testing.assert_array_equal(np.asarray(kept.q), np.asarray(clearance_traj.q)[NUM_POINTS // 2 :])
     np.testing.assert_array_equal(
-        np.asarray(kept.clearance["B"]["normal_force"]), np.asarray(clearance_traj.clearance["B"]["normal_force"])[NUM_POINTS // 2 :]
+        np.asarray(kept.q), np.asarray(clearance_traj.q)[NUM_POINTS // 2 :]
+    )
+    np.testing.assert_array_equal(
+        np.asarray(kept.clearance["B"]["normal_force"]),
+        np.asarray(clearance_traj.clearance["B"]["normal_force"])[NUM_POINTS // 2 :],
     )
     # the plots of the kept window: x from the window's first angle, y-range from the window's values
     fig = plot.plot_vs_crank_angle(kept, "slider_a")
@@ -143,7 +162,9 @@ def test_window_keeps_the_later_instants(clearance_traj):
     low, high = fig.axes[0].get_ylim()
     values = np.asarray(kept.accelerations("slider"))[:, 0]
     span = values.max() - values.min()
-    assert low >= values.min() - 0.1 * span and high <= values.max() + 0.1 * span  # matplotlib's 5 % margins
+    assert (
+        low >= values.min() - 0.1 * span and high <= values.max() + 0.1 * span
+    )  # matplotlib's 5 % margins
 
 
 @pytest.fixture(scope="module")
@@ -174,5 +195,12 @@ def test_standard_plots_follow_the_mechanism(four_bar_traj, tmp_path):
     assert ax.get_ylabel() == "Rocker angular acceleration (rad/s²)"
     fig = plot.plot_joint_forces(four_bar_traj)
     lines = fig.axes[0].get_lines()
-    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["joint O2", "joint A", "joint B", "joint O4"]
-    np.testing.assert_allclose(lines[3].get_ydata(), np.linalg.norm(np.asarray(four_bar_traj.joint_force("O4")), axis=1))
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == [
+        "joint O2",
+        "joint A",
+        "joint B",
+        "joint O4",
+    ]
+    np.testing.assert_allclose(
+        lines[3].get_ydata(), np.linalg.norm(np.asarray(four_bar_traj.joint_force("O4")), axis=1)
+    )

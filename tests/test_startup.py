@@ -10,7 +10,9 @@ from jaxclear.friction import NoFriction
 CLEARANCE = 5e-4  # m
 RPM = 5000.0
 HORIZON = 4e-4  # s: at 5000 rpm a centred journal first strikes the wall after about 0.2-0.3 ms
-NUM_POINTS = 401  # one output grid for every solve here: the solves share one compilation per topology
+NUM_POINTS = (
+    401  # one output grid for every solve here: the solves share one compilation per topology
+)
 PEAK_RATIO = 5.0
 """The centred start's first-impact peak must exceed the wall start's by at least this factor: a
 journal that starts on the wall is already loaded, a centred one strikes it after flying free."""
@@ -37,7 +39,10 @@ def ideal_joint_force(mechanism, joint: str) -> np.ndarray:
 SLOW = pytest.mark.slow  # another joint is another topology: two more compilations
 
 
-@pytest.mark.parametrize(("joint", "journal_body"), [("B", None), pytest.param("B", "rod", marks=SLOW), pytest.param("O", None, marks=SLOW)])
+@pytest.mark.parametrize(
+    ("joint", "journal_body"),
+    [("B", None), pytest.param("B", "rod", marks=SLOW), pytest.param("O", None, marks=SLOW)],
+)
 def test_eccentricity_on_the_wall_along_the_reaction(joint, journal_body):
     options = {} if journal_body is None else {"journal_body": journal_body}
     mechanism = slider_crank(joint, **options)
@@ -48,10 +53,14 @@ def test_eccentricity_on_the_wall_along_the_reaction(joint, journal_body):
     force = ideal_joint_force(mechanism, joint)
     assert np.linalg.norm(force) > 100.0  # the benchmark's joints carry kN at 5000 rpm
     # e = c n with n along the force the journal puts on the bearing (contact force on the bearing +F_N n)
-    np.testing.assert_allclose(eccentricity, CLEARANCE * force / np.linalg.norm(force), rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(
+        eccentricity, CLEARANCE * force / np.linalg.norm(force), rtol=1e-9, atol=1e-15
+    )
     # only the eccentricity changed
     assert clearance_joint.bearing_body == mechanism.clearance_joints[0].bearing_body
-    np.testing.assert_array_equal(np.asarray(mechanism.clearance_joints[0].initial_eccentricity), [0.0, 0.0])
+    np.testing.assert_array_equal(
+        np.asarray(mechanism.clearance_joints[0].initial_eccentricity), [0.0, 0.0]
+    )
     # assembled: the journal centre sits at bearing centre + e, i.e. on the wall, no penetration
     traj = jaxclear.simulate(started, 1e-7, num_points=NUM_POINTS, solver="fast")
     out = traj.clearance[joint]
@@ -62,15 +71,26 @@ def test_eccentricity_on_the_wall_along_the_reaction(joint, journal_body):
 def test_pin_side_flips_the_wall():
     """Swapping which body carries the pin swaps bearing and journal, so the wall side flips."""
     on_slider = jaxclear.wall_start(slider_crank("B"), num_points=NUM_POINTS).clearance_joints[0]
-    on_rod = jaxclear.wall_start(slider_crank("B", journal_body="rod"), num_points=NUM_POINTS).clearance_joints[0]
-    np.testing.assert_allclose(np.asarray(on_rod.initial_eccentricity), -np.asarray(on_slider.initial_eccentricity), rtol=1e-9)
+    on_rod = jaxclear.wall_start(
+        slider_crank("B", journal_body="rod"), num_points=NUM_POINTS
+    ).clearance_joints[0]
+    np.testing.assert_allclose(
+        np.asarray(on_rod.initial_eccentricity),
+        -np.asarray(on_slider.initial_eccentricity),
+        rtol=1e-9,
+    )
 
 
-@pytest.mark.parametrize("joint", ["B", pytest.param("A", marks=SLOW), pytest.param("O", marks=SLOW)])
+@pytest.mark.parametrize(
+    "joint", ["B", pytest.param("A", marks=SLOW), pytest.param("O", marks=SLOW)]
+)
 def test_wall_start_softens_the_first_impact(joint):
     mechanism = slider_crank(joint)
     peaks = {}
-    for name, start in (("centred", mechanism), ("wall", jaxclear.wall_start(mechanism, num_points=NUM_POINTS))):
+    for name, start in (
+        ("centred", mechanism),
+        ("wall", jaxclear.wall_start(mechanism, num_points=NUM_POINTS)),
+    ):
         traj = jaxclear.simulate(start, HORIZON, num_points=NUM_POINTS, solver="fast")
         force = np.asarray(traj.clearance[joint]["normal_force"])
         assert force.max() > 0, f"{name}: no contact within {HORIZON} s"

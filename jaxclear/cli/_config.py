@@ -75,7 +75,9 @@ def _decode(path: str) -> str:
     except FileNotFoundError:
         raise UsageError(f"config file {path!r} not found; give the path of a TOML file") from None
     except IsADirectoryError:
-        raise UsageError(f"config file {path!r} is a directory; give the path of a TOML file") from None
+        raise UsageError(
+            f"config file {path!r} is a directory; give the path of a TOML file"
+        ) from None
     except OSError as e:
         raise UsageError(f"cannot read config file {path!r}: {e.strerror or e}") from None
     try:
@@ -101,15 +103,23 @@ def read_config(path: str) -> ConfigFile:
     for section, table in data.items():
         if section in DESCRIPTION_TABLES:
             if not isinstance(table, dict):
-                raise UsageError(f"{section!r} in {path!r} must be a table [{section}...]; see docs/cli.md")
+                raise UsageError(
+                    f"{section!r} in {path!r} must be a table [{section}...]; see docs/cli.md"
+                )
             description[section] = table
             continue
         if not isinstance(table, dict):
             where = next((f"[{x.section}]" for x in SETTINGS if x.key == section), None)
-            hint = f"put it under {where}" if where else f"keys belong in the sections {known_sections}"
+            hint = (
+                f"put it under {where}"
+                if where
+                else f"keys belong in the sections {known_sections}"
+            )
             raise UsageError(f"top-level key {section!r} in {path!r} is not in a section; {hint}")
         if section not in SECTIONS:
-            raise UsageError(f"unknown section [{section}] in {path!r}; known sections: {known_sections}")
+            raise UsageError(
+                f"unknown section [{section}] in {path!r}; known sections: {known_sections}"
+            )
         for key, value in table.items():
             s = BY_LABEL.get((section, key))
             if section == "clearance" and isinstance(value, dict) and (s is None or not s.shared):
@@ -117,9 +127,19 @@ def read_config(path: str) -> ConfigFile:
                 continue
             if s is None or not s.shared:
                 known = ", ".join(x.key for x in SETTINGS if x.section == section and x.shared)
-                extra = "; per-joint tables [clearance.<joint>] hold per-joint keys" if section == "clearance" else ""
-                hint = " (it belongs in a per-joint table [clearance.<joint>])" if s is not None else ""
-                raise UsageError(f"unknown key {key!r} in [{section}] of {path!r}{hint}; known keys: {known}{extra}")
+                extra = (
+                    "; per-joint tables [clearance.<joint>] hold per-joint keys"
+                    if section == "clearance"
+                    else ""
+                )
+                hint = (
+                    " (it belongs in a per-joint table [clearance.<joint>])"
+                    if s is not None
+                    else ""
+                )
+                raise UsageError(
+                    f"unknown key {key!r} in [{section}] of {path!r}{hint}; known keys: {known}{extra}"
+                )
             if not type_ok(s, value):
                 raise UsageError(f"{s.label} in {path!r} must be {type_name(s)}, got {value!r}")
             values[(section, key)] = value
@@ -135,7 +155,9 @@ def _joint_table(path: str, joint: str, table: dict) -> dict:
                 f"unknown key {key!r} in [clearance.{joint}] of {path!r}; per-joint keys: {', '.join(known)}"
             )
         if not type_ok(s, value):
-            raise UsageError(f"[clearance.{joint}] {key} in {path!r} must be {type_name(s)}, got {value!r}")
+            raise UsageError(
+                f"[clearance.{joint}] {key} in {path!r} must be {type_name(s)}, got {value!r}"
+            )
         check_value(s, value, f"[clearance.{joint}] {key} in {path!r}")
     return dict(table)
 
@@ -197,16 +219,20 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
         if (s.section, s.key) in sources:
             check_value(s, config[s.section][s.key], sources[(s.section, s.key)])
     if name == "custom" and config["mechanism"]["rpm"] is None:
-        raise UsageError("[mechanism] rpm is required for a custom mechanism (speed of the [driver] body, rev/min)")
+        raise UsageError(
+            "[mechanism] rpm is required for a custom mechanism (speed of the [driver] body, rev/min)"
+        )
     description = file.description if file is not None else {}
     if file is not None and description and name != "custom":
         tables = ", ".join(f"[{t}]" for t in description)
         raise UsageError(
             f"{tables} in {file.path!r} describe a custom mechanism, but {sources[('mechanism', 'name')]} "
-            f"gives {name}; set [mechanism] name = \"custom\" or remove those tables"
+            f'gives {name}; set [mechanism] name = "custom" or remove those tables'
         )
     if name == "custom" and "bodies" not in description:
-        raise UsageError("a custom mechanism needs [bodies.<name>] tables (and [joints], [driver]); see docs/cli.md")
+        raise UsageError(
+            "a custom mechanism needs [bodies.<name>] tables (and [joints], [driver]); see docs/cli.md"
+        )
     simulation = config["simulation"]
     if simulation["skip_revolutions"] >= simulation["revolutions"]:
         raise UsageError(
@@ -221,4 +247,3 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
         description=description,
         config_file=args.config,
     )
-

@@ -53,7 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'jaxclear run --help' for the options and config-file keys.",
     )
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(
+        dest="command", metavar="COMMAND", required=True, parser_class=_Parser
+    )
     for module in SUBCOMMANDS.values():
         module.add_parser(sub, _Parser)
     return parser
@@ -88,7 +90,10 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as e:  # one line for anything unexpected; JAXCLEAR_TRACEBACK=1 shows it all
         if os.environ.get("JAXCLEAR_TRACEBACK"):
             raise
-        _fail(f"{type(e).__name__}: {one_line(e)} (set JAXCLEAR_TRACEBACK=1 for the traceback)", EXIT_FAILURE)
+        _fail(
+            f"{type(e).__name__}: {one_line(e)} (set JAXCLEAR_TRACEBACK=1 for the traceback)",
+            EXIT_FAILURE,
+        )
 
 
 def _fail(message: str, code: int) -> NoReturn:

@@ -65,33 +65,75 @@ class Field:
 
 
 TABLES: dict[str, tuple[Field, ...]] = {
-    "ground": (Field("points", "points", "m", "points fixed in the global frame, name = [x, y]", False, "{}"),),
+    "ground": (
+        Field(
+            "points", "points", "m", "points fixed in the global frame, name = [x, y]", False, "{}"
+        ),
+    ),
     "bodies.<name>": (
         Field("mass", "number", "kg", "mass m (> 0)"),
         Field("inertia", "number", "kg m^2", "moment of inertia J about the centre of mass (> 0)"),
-        Field("position", "vector3", "m, m, rad", "initial pose (x, y, phi) of the centre of mass; refined by assembly"),
-        Field("velocity", "vector3", "m/s, m/s, rad/s", "initial velocity guess; refined by assembly", False, "[0, 0, 0]"),
+        Field(
+            "position",
+            "vector3",
+            "m, m, rad",
+            "initial pose (x, y, phi) of the centre of mass; refined by assembly",
+        ),
+        Field(
+            "velocity",
+            "vector3",
+            "m/s, m/s, rad/s",
+            "initial velocity guess; refined by assembly",
+            False,
+            "[0, 0, 0]",
+        ),
         Field("points", "points", "m", "points in the body frame, name = [x, y]", False, "{}"),
     ),
     "joints.<name>": (
         Field("type", "string", "", "revolute or translational"),
-        Field("between", "pair", "", "two points [\"body.point\", \"body.point\"] on two different bodies"),
-        Field("axis", "vector2", "", "translational: guide direction in the second body's frame", False, "[1, 0]"),
-        Field("angle", "number", "rad", "translational: relative angle phi_1 - phi_2 the joint holds", False, "0"),
+        Field(
+            "between", "pair", "", 'two points ["body.point", "body.point"] on two different bodies'
+        ),
+        Field(
+            "axis",
+            "vector2",
+            "",
+            "translational: guide direction in the second body's frame",
+            False,
+            "[1, 0]",
+        ),
+        Field(
+            "angle",
+            "number",
+            "rad",
+            "translational: relative angle phi_1 - phi_2 the joint holds",
+            False,
+            "0",
+        ),
     ),
     "driver": (
-        Field("body", "string", "", "driven body; turns at [mechanism] rpm from its initial pose angle"),
+        Field(
+            "body",
+            "string",
+            "",
+            "driven body; turns at [mechanism] rpm from its initial pose angle",
+        ),
         Field("relative_to", "string", "", "reference body of the driven angle", False, "ground"),
     ),
     "springs.<name>": (
         Field("between", "pair", "", "the two attachment points"),
-        Field("stiffness", "number", "N/m", "k (>= 0); tension k (length - free_length) + damping rate"),
+        Field(
+            "stiffness",
+            "number",
+            "N/m",
+            "k (>= 0); tension k (length - free_length) + damping rate",
+        ),
         Field("damping", "number", "N s/m", "c (>= 0)", False, "0"),
         Field("free_length", "number", "m", "free length (>= 0)", False, "0"),
     ),
     "loads.<name>": (
         Field("type", "string", "", "force or torque"),
-        Field("at", "string", "", "force: point \"body.point\" where it acts"),
+        Field("at", "string", "", 'force: point "body.point" where it acts'),
         Field("force", "vector2", "N", "force: global components (fx, fy)"),
         Field("body", "string", "", "torque: body it acts on"),
         Field("torque", "number", "N m", "torque: counter-clockwise positive"),
@@ -153,7 +195,9 @@ def clearance_joint_names(settings: Settings, ideal) -> list[str]:
     text = settings.config["clearance"]["joints"].strip()
     names = [] if text.lower() == "none" else [n.strip() for n in text.split(",") if n.strip()]
     revolute = [j.name for j in ideal.joints if isinstance(j, jaxclear.RevoluteJoint)]
-    other = {j.name: type(j).__name__ for j in ideal.joints if not isinstance(j, jaxclear.RevoluteJoint)}
+    other = {
+        j.name: type(j).__name__ for j in ideal.joints if not isinstance(j, jaxclear.RevoluteJoint)
+    }
     for joint in names:
         if joint in other:
             raise UsageError(
@@ -166,10 +210,16 @@ def clearance_joint_names(settings: Settings, ideal) -> list[str]:
             f"{source} must list distinct joints among {', '.join(revolute)} (or 'none'), got {text!r}"
         )
     if source.startswith("--"):
-        return names  # a flag overrides the file's list: per-joint tables of other joints are unused
+        return (
+            names  # a flag overrides the file's list: per-joint tables of other joints are unused
+        )
     for joint in settings.joint_tables:
         if joint not in names:
-            where = "is not a joint of the mechanism" if joint not in revolute and joint not in other else "has no clearance"
+            where = (
+                "is not a joint of the mechanism"
+                if joint not in revolute and joint not in other
+                else "has no clearance"
+            )
             raise UsageError(
                 f"[clearance.{joint}] in {settings.config_file!r}: joint {joint!r} {where}; "
                 f"add it to [clearance] joints (now {text!r}) or remove the table"
@@ -190,20 +240,30 @@ def joint_options(settings: Settings, joint: str) -> dict:
         return settings.source("clearance", key)
 
     if c["contact"] not in CONTACT_LAWS:
-        raise UsageError(f"{where('contact')}: contact law {c['contact']!r} is unknown; choose one of {', '.join(CONTACT_LAWS)}")
+        raise UsageError(
+            f"{where('contact')}: contact law {c['contact']!r} is unknown; choose one of {', '.join(CONTACT_LAWS)}"
+        )
     if c["friction"] not in FRICTION_LAWS:
-        raise UsageError(f"{where('friction')}: friction law {c['friction']!r} is unknown; choose one of {', '.join(FRICTION_LAWS)}")
+        raise UsageError(
+            f"{where('friction')}: friction law {c['friction']!r} is unknown; choose one of {', '.join(FRICTION_LAWS)}"
+        )
     if c["clearance"] >= c["bearing_radius"]:
         raise UsageError(
             f"{where('clearance')}: clearance {c['clearance']} m at joint {joint} must be smaller than bearing_radius "
             f"{c['bearing_radius']} m"
         )
     if not 0 < c["poisson_ratio"] < 0.5:
-        raise UsageError(f"{where('poisson_ratio')} must be in (0, 0.5), got {c['poisson_ratio']}; steel is 0.3")
+        raise UsageError(
+            f"{where('poisson_ratio')} must be in (0, 0.5), got {c['poisson_ratio']}; steel is 0.3"
+        )
     geometry = ContactGeometry(
-        c["bearing_radius"], c["bearing_radius"] - c["clearance"], length=c["pin_length"],
-        bearing_young=c["young_modulus"], journal_young=c["young_modulus"],
-        bearing_poisson=c["poisson_ratio"], journal_poisson=c["poisson_ratio"],
+        c["bearing_radius"],
+        c["bearing_radius"] - c["clearance"],
+        length=c["pin_length"],
+        bearing_young=c["young_modulus"],
+        journal_young=c["young_modulus"],
+        bearing_poisson=c["poisson_ratio"],
+        journal_poisson=c["poisson_ratio"],
     )
     fields = {f.name for f in dataclasses.fields(CONTACT_LAWS[c["contact"]])}
     contact_params = {"restitution": c["restitution"]} if "restitution" in fields else {}
@@ -214,12 +274,16 @@ def joint_options(settings: Settings, joint: str) -> dict:
     if c["friction_coefficient"] is not None:
         key = "kinetic_friction" if "kinetic_friction" in ffields else "friction_coefficient"
         if key not in ffields:
-            raise UsageError(f"{where('friction_coefficient')} does not apply to friction law {c['friction']!r}")
+            raise UsageError(
+                f"{where('friction_coefficient')} does not apply to friction law {c['friction']!r}"
+            )
         friction_params[key] = c["friction_coefficient"]
     for key in ("static_friction", "bristle_stiffness", "bristle_damping", "stribeck_velocity"):
         if c[key] is not None:
             if key not in ffields:
-                raise UsageError(f"{where(key)} applies to the lugre friction law only (joint {joint} uses {c['friction']!r})")
+                raise UsageError(
+                    f"{where(key)} applies to the lugre friction law only (joint {joint} uses {c['friction']!r})"
+                )
             friction_params[key] = c[key]
     try:
         contact_law = contact_law_from_name(c["contact"], **contact_params)
@@ -232,8 +296,10 @@ def joint_options(settings: Settings, joint: str) -> dict:
         contact_law=contact_law,
         friction_law=friction_law,
         smoothing=Smoothing(
-            penetration_width=c["penetration_width"], memory_width=c["memory_width"],
-            velocity_width=c["velocity_width"], memory_rate=c["memory_rate"],
+            penetration_width=c["penetration_width"],
+            memory_width=c["memory_width"],
+            velocity_width=c["velocity_width"],
+            memory_rate=c["memory_rate"],
         ),
     )
     if c.get("journal_body") is not None:
@@ -297,22 +363,30 @@ class _Points:
     def resolve(self, where: str, reference) -> tuple[str, tuple[float, float]]:
         """(body, local point) of ``"body.point"``."""
         if not isinstance(reference, str) or "." not in reference:
-            _fail(where, f"a point is written \"body.point\", got {reference!r}")
+            _fail(where, f'a point is written "body.point", got {reference!r}')
         body, point = reference.rsplit(".", 1)
         if body not in self.points:
-            _fail(where, f"unknown body {body!r} in {reference!r}; bodies: {', '.join(self.points)}")
+            _fail(
+                where, f"unknown body {body!r} in {reference!r}; bodies: {', '.join(self.points)}"
+            )
         if point not in self.points[body]:
             known = ", ".join(self.points[body]) or "none"
             table = "[ground.points]" if body == "ground" else f"[bodies.{body}.points]"
-            _fail(where, f"missing point {point!r} on {body!r} in {reference!r}; add it to {table} (its points: {known})")
+            _fail(
+                where,
+                f"missing point {point!r} on {body!r} in {reference!r}; add it to {table} (its points: {known})",
+            )
         return body, self.points[body][point]
 
     def pair(self, where: str, value) -> tuple[tuple[str, tuple], tuple[str, tuple]]:
         if not isinstance(value, list) or len(value) != 2:
-            _fail(where, f"must be two points [\"body.point\", \"body.point\"], got {value!r}")
+            _fail(where, f'must be two points ["body.point", "body.point"], got {value!r}')
         first, second = self.resolve(where, value[0]), self.resolve(where, value[1])
         if first[0] == second[0]:
-            _fail(where, f"connects body {first[0]!r} to itself; a joint or spring joins two different bodies")
+            _fail(
+                where,
+                f"connects body {first[0]!r} to itself; a joint or spring joins two different bodies",
+            )
         return first, second
 
 
@@ -334,8 +408,14 @@ def _custom(settings: Settings, spec: dict | None = None):
         where = f"[bodies.{name}]"
         _check_keys(where, table, allowed, required)
         if name == "ground":
-            _fail(where, "'ground' is the fixed frame; give its points in [ground.points] and name the body otherwise")
-        mass, inertia = _number(f"{where} mass", table["mass"]), _number(f"{where} inertia", table["inertia"])
+            _fail(
+                where,
+                "'ground' is the fixed frame; give its points in [ground.points] and name the body otherwise",
+            )
+        mass, inertia = (
+            _number(f"{where} mass", table["mass"]),
+            _number(f"{where} inertia", table["inertia"]),
+        )
         for key, value in (("mass", mass), ("inertia", inertia)):
             if not value > 0:
                 _fail(f"{where} {key}", f"must be positive, got {value}")
@@ -364,12 +444,19 @@ def _custom(settings: Settings, spec: dict | None = None):
             if math.hypot(*axis) == 0:
                 _fail(f"{where} axis", "must not be zero")
             angle = _number(f"{where} angle", table.get("angle", 0.0))
-            joints.append(jaxclear.TranslationalJoint(name, body_i, point_i, body_j, point_j, axis=axis, angle=angle))
+            joints.append(
+                jaxclear.TranslationalJoint(
+                    name, body_i, point_i, body_j, point_j, axis=axis, angle=angle
+                )
+            )
         else:
-            _fail(f"{where} type", f"must be \"revolute\" or \"translational\", got {kind!r}")
+            _fail(f"{where} type", f'must be "revolute" or "translational", got {kind!r}')
 
     if "driver" not in d:
-        _fail("[driver]", "missing; the run's length is in revolutions of a driven body: add [driver] body = \"<body>\"")
+        _fail(
+            "[driver]",
+            'missing; the run\'s length is in revolutions of a driven body: add [driver] body = "<body>"',
+        )
     driver_table = d["driver"]
     allowed, required = _fields("driver")
     _check_keys("[driver]", driver_table, allowed, required)
@@ -379,8 +466,13 @@ def _custom(settings: Settings, spec: dict | None = None):
         if value not in poses and not (key == "relative_to" and value == "ground"):
             _fail(f"[driver] {key}", f"unknown body {value!r}; bodies: {', '.join(poses)}")
     if body == relative_to:
-        _fail("[driver]", f"body and relative_to are both {body!r}; a driver turns one body against another")
-    initial = float(poses[body][2]) - (float(poses[relative_to][2]) if relative_to != "ground" else 0.0)
+        _fail(
+            "[driver]",
+            f"body and relative_to are both {body!r}; a driver turns one body against another",
+        )
+    initial = float(poses[body][2]) - (
+        float(poses[relative_to][2]) if relative_to != "ground" else 0.0
+    )
     rpm = settings.config["mechanism"]["rpm"]
     driver = jaxclear.ConstantSpeedDriver(
         body=body, speed=rpm * 2.0 * math.pi / 60.0, initial_angle=initial, relative_to=relative_to
@@ -392,7 +484,10 @@ def _custom(settings: Settings, spec: dict | None = None):
         where = f"[springs.{name}]"
         _check_keys(where, table, allowed, required)
         (body_i, point_i), (body_j, point_j) = points.pair(f"{where} between", table["between"])
-        values = {k: _number(f"{where} {k}", table.get(k, 0.0)) for k in ("stiffness", "damping", "free_length")}
+        values = {
+            k: _number(f"{where} {k}", table.get(k, 0.0))
+            for k in ("stiffness", "damping", "free_length")
+        }
         for key, value in values.items():
             if value < 0:
                 _fail(f"{where} {key}", f"must be zero or positive, got {value}")
@@ -401,24 +496,34 @@ def _custom(settings: Settings, spec: dict | None = None):
         where = f"[loads.{name}]"
         kind = table.get("type")
         if kind not in LOAD_KEYS:
-            _fail(f"{where} type", f"must be \"force\" or \"torque\", got {kind!r}")
+            _fail(f"{where} type", f'must be "force" or "torque", got {kind!r}')
         _check_keys(where, table, LOAD_KEYS[kind], LOAD_KEYS[kind])
         if kind == "force":
             target, point = points.resolve(f"{where} at", table["at"])
             if target == "ground":
                 _fail(f"{where} at", "a load on ground does nothing; put it on a moving body")
-            forces.append(jaxclear.AppliedForce(name, target, point, _vector(f"{where} force", table["force"], 2)))
+            forces.append(
+                jaxclear.AppliedForce(
+                    name, target, point, _vector(f"{where} force", table["force"], 2)
+                )
+            )
         else:
             target = table["body"]
             if target not in poses:
                 _fail(f"{where} body", f"unknown body {target!r}; bodies: {', '.join(poses)}")
-            forces.append(jaxclear.AppliedTorque(name=name, body=target, torque=_number(f"{where} torque", table["torque"])))
+            forces.append(
+                jaxclear.AppliedTorque(
+                    name=name, body=target, torque=_number(f"{where} torque", table["torque"])
+                )
+            )
 
     gravity = settings.config["mechanism"]["gravity"]
     g = 9.81 if gravity is True else (0.0 if gravity is False else float(gravity))
     revolute = {j.name: j for j in joints if isinstance(j, jaxclear.RevoluteJoint)}
     try:
-        clearance = jaxclear.mechanisms.make_clearance_joints(revolute, spec or {}, {}, "custom mechanism")
+        clearance = jaxclear.mechanisms.make_clearance_joints(
+            revolute, spec or {}, {}, "custom mechanism"
+        )
         return jaxclear.Mechanism(
             bodies=tuple(bodies),
             joints=tuple(j for j in joints if j.name not in {c.name for c in clearance}),
@@ -435,7 +540,12 @@ def markdown_reference() -> str:
     """The custom-mechanism tables (``TABLES``) as Markdown (embedded verbatim in docs/cli.md)."""
     out = []
     for table, fields in TABLES.items():
-        out += [f"### `[{table}]`", "", "| key | unit | required | description |", "| --- | --- | --- | --- |"]
+        out += [
+            f"### `[{table}]`",
+            "",
+            "| key | unit | required | description |",
+            "| --- | --- | --- | --- |",
+        ]
         for f in fields:
             required = "yes" if f.required else f"no (default {f.default})"
             if table == "loads.<name>" and f.key not in ("type",):

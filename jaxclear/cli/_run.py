@@ -92,10 +92,21 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    run.add_argument("config", nargs="?", metavar="CONFIG.toml", help="TOML config file (keys below)")
+    run.add_argument(
+        "config", nargs="?", metavar="CONFIG.toml", help="TOML config file (keys below)"
+    )
     add_setting_arguments(run)
-    run.add_argument("--no-progress", action="store_true", help="no progress bar (it is shown only on a terminal anyway)")
-    run.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors (implies --no-progress)")
+    run.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (it is shown only on a terminal anyway)",
+    )
+    run.add_argument(
+        "--quiet",
+        "-q",
+        action="store_true",
+        help="print nothing but errors (implies --no-progress)",
+    )
     return run
 
 
@@ -109,7 +120,9 @@ def solver_for(settings: Settings, mechanism=None):
     section = settings.config["solver"]
     name = section["method"]
     if name not in solver_names():
-        raise UsageError(f"{settings.source('solver', 'method')}: solver {name!r} is unknown; choose {solver_help()}")
+        raise UsageError(
+            f"{settings.source('solver', 'method')}: solver {name!r} is unknown; choose {solver_help()}"
+        )
     if name == "auto":
         name = jaxclear.recommended_solver(mechanism).method if mechanism is not None else "fast"
     solver = solver_config(name)
@@ -128,7 +141,11 @@ def grid(settings: Settings) -> tuple[float, int]:
 
 def kept_start(settings: Settings) -> float:
     """Start of the kept window (after ``skip_revolutions``), s."""
-    return 60.0 * settings.config["simulation"]["skip_revolutions"] / settings.config["mechanism"]["rpm"]
+    return (
+        60.0
+        * settings.config["simulation"]["skip_revolutions"]
+        / settings.config["mechanism"]["rpm"]
+    )
 
 
 def prepare_output(settings: Settings) -> Path:
@@ -148,7 +165,9 @@ def prepare_output(settings: Settings) -> Path:
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise UsageError(f"{source} {text!r} is not writable ({e.strerror or e}); choose a folder you can write to") from None
+        raise UsageError(
+            f"{source} {text!r} is not writable ({e.strerror or e}); choose a folder you can write to"
+        ) from None
     return out_dir
 
 
@@ -157,7 +176,9 @@ def _block(traj):
     return traj
 
 
-def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool, statistics_start: float):
+def timed_simulate(
+    mechanism, t1: float, num_points: int, solver, progress: bool, statistics_start: float
+):
     """Simulate, timing compilation and the run separately.
 
     A warm-up call over ``WARMUP_FRACTION`` of the horizon, with the same number of output points,
@@ -167,10 +188,17 @@ def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool
     ``run_time_s``. Statistics are accumulated over the solver's steps from ``statistics_start``.
     """
     start = time.perf_counter()
-    with contextlib.redirect_stderr(io.StringIO()):  # keep the warm-up's progress bar off the terminal
+    with contextlib.redirect_stderr(
+        io.StringIO()
+    ):  # keep the warm-up's progress bar off the terminal
         _block(
             jaxclear.simulate(
-                mechanism, t1 * WARMUP_FRACTION, num_points=num_points, solver=solver, progress=progress, throw=False,
+                mechanism,
+                t1 * WARMUP_FRACTION,
+                num_points=num_points,
+                solver=solver,
+                progress=progress,
+                throw=False,
                 statistics_start=0.0,
             )
         )
@@ -178,7 +206,12 @@ def timed_simulate(mechanism, t1: float, num_points: int, solver, progress: bool
     start = time.perf_counter()
     traj = _block(
         jaxclear.simulate(
-            mechanism, t1, num_points=num_points, solver=solver, progress=progress, throw=False,
+            mechanism,
+            t1,
+            num_points=num_points,
+            solver=solver,
+            progress=progress,
+            throw=False,
             statistics_start=statistics_start,
         )
     )
@@ -201,7 +234,9 @@ def _figures(traj, statistics: dict) -> str:
     """The run's headline figures over the kept window, from the solver's steps (``statistics``)."""
     parts = []
     if _outputs.is_slider_crank(traj.mechanism):
-        parts.append(f"peak |slider acceleration| {statistics['peak_slider_acceleration']:.6g} m/s^2")
+        parts.append(
+            f"peak |slider acceleration| {statistics['peak_slider_acceleration']:.6g} m/s^2"
+        )
     driver = traj.mechanism.driver
     if driver is not None:
         low, high, rms = (statistics[f"{driver.body}_torque_{k}"] for k in ("min", "max", "rms"))
@@ -223,7 +258,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
-    fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX's backend starts
+    fast_compile = apply_fast_compile(
+        config["solver"]["fast_compile"]
+    )  # before JAX's backend starts
     mechanism = build_mechanism(settings)
     ideal = ideal_mechanism(mechanism)  # clearance joints made ideal: the plots' reference
     names = [j.name for j in mechanism.clearance_joints]
@@ -233,7 +270,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         jaxclear.assemble(ideal)  # a mechanism that cannot assemble is bad input: exit 2
         out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
         if names and start == "wall":
-            mechanism = wall_start(mechanism, num_points=num_points)  # shares the reference run's compilation
+            mechanism = wall_start(
+                mechanism, num_points=num_points
+            )  # shares the reference run's compilation
         jaxclear.assemble(mechanism)
     except jaxclear.AssemblyError as e:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
@@ -256,7 +295,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     )
     say("compiling (one-off) and simulating ...", flush=True)
     try:
-        traj, compile_time, run_time = timed_simulate(mechanism, t1, num_points, solver, progress, t_keep)
+        traj, compile_time, run_time = timed_simulate(
+            mechanism, t1, num_points, solver, progress, t_keep
+        )
     except jaxclear.AssemblyError as e:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
     except jaxclear.ModelError as e:
@@ -316,15 +357,21 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             files = [p.name for p in save_standard_plots(kept, out_dir, reference=reference)]
         info.update(
             statistics=statistics,
-            contact_mode_shares=_outputs.mode_shares(kept, fraction, reference_period=60.0 / rpm) if names else {},
+            contact_mode_shares=_outputs.mode_shares(kept, fraction, reference_period=60.0 / rpm)
+            if names
+            else {},
             files=files,
         )
         paths = _outputs.write_results(out_dir, traj, info, fraction)
     except OSError as e:
-        raise RunError(f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder") from None
+        raise RunError(
+            f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
+        ) from None
 
     stats = traj.stats()
-    say(f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)")
+    say(
+        f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)"
+    )
     say(f"from revolution {skip:g}: {_figures(kept, statistics)}")
     say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
     return 0
@@ -337,7 +384,9 @@ def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> in
 
     failure = failure_error(traj, solver)
     reached = _outputs.finite_rows(traj.truncated())
-    info.update(status="failed", error=one_line(failure), statistics={}, contact_mode_shares={}, files=[])
+    info.update(
+        status="failed", error=one_line(failure), statistics={}, contact_mode_shares={}, files=[]
+    )
     try:
         if reached.t.shape[0] >= 1:
             _outputs.write_results(out_dir, reached, info, fraction)
@@ -346,10 +395,13 @@ def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> in
                 "(run.json status 'failed')."
             )
         else:
-            _outputs.write_json(out_dir / _outputs.RUN_JSON_NAME, {**info, "files": [_outputs.RUN_JSON_NAME]})
+            _outputs.write_json(
+                out_dir / _outputs.RUN_JSON_NAME, {**info, "files": [_outputs.RUN_JSON_NAME]}
+            )
             where = f"No instant was reached; {out_dir}/run.json has status 'failed'."
     except OSError as e:
-        raise RunError(f"{one_line(failure)} Also cannot write to {str(out_dir)!r}: {e.strerror or e}.") from None
+        raise RunError(
+            f"{one_line(failure)} Also cannot write to {str(out_dir)!r}: {e.strerror or e}."
+        ) from None
     say(f"simulation failed after {int(traj.num_steps)} steps")
     raise RunError(f"{one_line(failure)} {where}")
-

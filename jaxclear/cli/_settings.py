@@ -129,112 +129,526 @@ _gravity_default = {**_library_defaults("gravity"), "custom": False}
 SETTINGS: tuple[Setting, ...] = (
     # [mechanism]: which mechanism, its speed and gravity; the benchmarks' dimensions (docs/model.md §6)
     Setting(
-        "mechanism", "name", str, None, "",
+        "mechanism",
+        "name",
+        str,
+        None,
+        "",
         "slider_crank, four_bar, or custom (the mechanism described by [bodies], [joints], [driver], ...); "
         "default: custom when the file has [bodies], else slider_crank",
-        "--mechanism", choices=MECHANISMS,
+        "--mechanism",
+        choices=MECHANISMS,
     ),
     Setting(
-        "mechanism", "rpm", float, _rpm_default, "rev/min",
+        "mechanism",
+        "rpm",
+        float,
+        _rpm_default,
+        "rev/min",
         f"speed of the driven body (at most {MAX_RPM:g}: larger values are unit slips); required for custom",
-        "--rpm", "rpm",
+        "--rpm",
+        "rpm",
     ),
     Setting(
-        "mechanism", "gravity", "gravity", _gravity_default, "m/s^2",
+        "mechanism",
+        "gravity",
+        "gravity",
+        _gravity_default,
+        "m/s^2",
         "gravity along -y: true (9.81), false (none) or a magnitude",
-        "--gravity", "nonnegative",
+        "--gravity",
+        "nonnegative",
         flag_help="switch gravity (9.81 m/s^2 along -y) on or off; a different magnitude goes in the config file",
     ),
     Setting(
-        "mechanism", "initial_angle", float, _library_defaults("initial_angle"), "rad",
-        "crank angle at t = 0 (slider_crank: 0 = outer dead centre)", None, "finite", mechanisms=BENCHMARKS,
+        "mechanism",
+        "initial_angle",
+        float,
+        _library_defaults("initial_angle"),
+        "rad",
+        "crank angle at t = 0 (slider_crank: 0 = outer dead centre)",
+        None,
+        "finite",
+        mechanisms=BENCHMARKS,
     ),
-    Setting("mechanism", "crank_length", float, _library_defaults("crank_length"), "m", "crank length", None, "positive", mechanisms=BENCHMARKS),
-    Setting("mechanism", "rod_length", float, _library_defaults("rod_length"), "m", "connecting-rod length A-B (> crank_length)", None, "positive", mechanisms=SC),
-    Setting("mechanism", "ground_length", float, _library_defaults("ground_length"), "m", "distance of the ground pivots O2-O4", None, "positive", mechanisms=FB),
-    Setting("mechanism", "coupler_length", float, _library_defaults("coupler_length"), "m", "coupler length A-B", None, "positive", mechanisms=FB),
-    Setting("mechanism", "rocker_length", float, _library_defaults("rocker_length"), "m", "rocker length B-O4", None, "positive", mechanisms=FB),
-    Setting("mechanism", "crank_mass", float, _library_defaults("crank_mass"), "kg", "crank mass", None, "positive", mechanisms=BENCHMARKS),
-    Setting("mechanism", "rod_mass", float, _library_defaults("rod_mass"), "kg", "connecting-rod mass", None, "positive", mechanisms=SC),
-    Setting("mechanism", "slider_mass", float, _library_defaults("slider_mass"), "kg", "slider mass", None, "positive", mechanisms=SC),
-    Setting("mechanism", "coupler_mass", float, _library_defaults("coupler_mass"), "kg", "coupler mass (J = m L^2/12)", None, "positive", mechanisms=FB),
-    Setting("mechanism", "rocker_mass", float, _library_defaults("rocker_mass"), "kg", "rocker mass (J = m L^2/12)", None, "positive", mechanisms=FB),
-    Setting("mechanism", "crank_inertia", float, _library_defaults("crank_inertia"), "kg m^2", "crank moment of inertia about its centre of mass", None, "positive", mechanisms=SC),
-    Setting("mechanism", "rod_inertia", float, _library_defaults("rod_inertia"), "kg m^2", "rod moment of inertia about its centre of mass", None, "positive", mechanisms=SC),
-    Setting("mechanism", "slider_inertia", float, _library_defaults("slider_inertia"), "kg m^2", "slider moment of inertia", None, "positive", mechanisms=SC),
+    Setting(
+        "mechanism",
+        "crank_length",
+        float,
+        _library_defaults("crank_length"),
+        "m",
+        "crank length",
+        None,
+        "positive",
+        mechanisms=BENCHMARKS,
+    ),
+    Setting(
+        "mechanism",
+        "rod_length",
+        float,
+        _library_defaults("rod_length"),
+        "m",
+        "connecting-rod length A-B (> crank_length)",
+        None,
+        "positive",
+        mechanisms=SC,
+    ),
+    Setting(
+        "mechanism",
+        "ground_length",
+        float,
+        _library_defaults("ground_length"),
+        "m",
+        "distance of the ground pivots O2-O4",
+        None,
+        "positive",
+        mechanisms=FB,
+    ),
+    Setting(
+        "mechanism",
+        "coupler_length",
+        float,
+        _library_defaults("coupler_length"),
+        "m",
+        "coupler length A-B",
+        None,
+        "positive",
+        mechanisms=FB,
+    ),
+    Setting(
+        "mechanism",
+        "rocker_length",
+        float,
+        _library_defaults("rocker_length"),
+        "m",
+        "rocker length B-O4",
+        None,
+        "positive",
+        mechanisms=FB,
+    ),
+    Setting(
+        "mechanism",
+        "crank_mass",
+        float,
+        _library_defaults("crank_mass"),
+        "kg",
+        "crank mass",
+        None,
+        "positive",
+        mechanisms=BENCHMARKS,
+    ),
+    Setting(
+        "mechanism",
+        "rod_mass",
+        float,
+        _library_defaults("rod_mass"),
+        "kg",
+        "connecting-rod mass",
+        None,
+        "positive",
+        mechanisms=SC,
+    ),
+    Setting(
+        "mechanism",
+        "slider_mass",
+        float,
+        _library_defaults("slider_mass"),
+        "kg",
+        "slider mass",
+        None,
+        "positive",
+        mechanisms=SC,
+    ),
+    Setting(
+        "mechanism",
+        "coupler_mass",
+        float,
+        _library_defaults("coupler_mass"),
+        "kg",
+        "coupler mass (J = m L^2/12)",
+        None,
+        "positive",
+        mechanisms=FB,
+    ),
+    Setting(
+        "mechanism",
+        "rocker_mass",
+        float,
+        _library_defaults("rocker_mass"),
+        "kg",
+        "rocker mass (J = m L^2/12)",
+        None,
+        "positive",
+        mechanisms=FB,
+    ),
+    Setting(
+        "mechanism",
+        "crank_inertia",
+        float,
+        _library_defaults("crank_inertia"),
+        "kg m^2",
+        "crank moment of inertia about its centre of mass",
+        None,
+        "positive",
+        mechanisms=SC,
+    ),
+    Setting(
+        "mechanism",
+        "rod_inertia",
+        float,
+        _library_defaults("rod_inertia"),
+        "kg m^2",
+        "rod moment of inertia about its centre of mass",
+        None,
+        "positive",
+        mechanisms=SC,
+    ),
+    Setting(
+        "mechanism",
+        "slider_inertia",
+        float,
+        _library_defaults("slider_inertia"),
+        "kg m^2",
+        "slider moment of inertia",
+        None,
+        "positive",
+        mechanisms=SC,
+    ),
     # [clearance]: revolute clearance joints, docs/model.md §2-§5; [clearance.<joint>] overrides per joint
     Setting(
-        "clearance", "joints", str, {"slider_crank": "O,A,B", "four_bar": "none", "custom": "none"}, "",
+        "clearance",
+        "joints",
+        str,
+        {"slider_crank": "O,A,B", "four_bar": "none", "custom": "none"},
+        "",
         "revolute joints with clearance, comma-separated (slider_crank: O, A, B; four_bar: O2, A, B, O4; "
         "custom: names of [joints] tables), or none for ideal joints",
         "--clearance-joints",
     ),
-    Setting("clearance", "clearance", float, 5e-4, "m", "radial clearance c = R_B - R_J", "--clearance", "positive", per_joint=True),
     Setting(
-        "clearance", "journal_body", str, None, "",
-        "which of the joint's two bodies carries the pin (journal); the other carries the hole (bearing); "
-        "default: the joint's second body (slider_crank B: slider)",
-        shared=False, per_joint=True,
-    ),
-    Setting("clearance", "bearing_radius", float, 0.01, "m", "bearing (hole) radius R_B", None, "positive", per_joint=True),
-    Setting("clearance", "pin_length", float, 0.01, "m", "pin length h (cylindrical and foundation laws)", None, "positive", per_joint=True),
-    Setting("clearance", "young_modulus", float, 207e9, "Pa", "Young's modulus E of bearing and journal", None, "positive", per_joint=True),
-    Setting("clearance", "poisson_ratio", float, 0.3, "", "Poisson's ratio of bearing and journal, in (0, 0.5)", None, "positive", per_joint=True),
-    Setting("clearance", "contact", str, "hybrid", "", f"normal contact law: {', '.join(CONTACT_LAWS)}", "--contact", per_joint=True),
-    Setting("clearance", "restitution", float, 0.9, "", "restitution coefficient c_e in (0, 1] (damped laws)", "--restitution", "positive", per_joint=True),
-    Setting("clearance", "gauss_points", int, 3, "", "hybrid law: Gauss points per element m1", None, "positive", per_joint=True),
-    Setting("clearance", "elements", int, 10, "", "hybrid law: elements over the contact arc m2", None, "positive", per_joint=True),
-    Setting("clearance", "friction", str, "lugre", "", f"friction law: {', '.join(FRICTION_LAWS)}", "--friction", per_joint=True),
-    Setting(
-        "clearance", "friction_coefficient", float, None, "",
-        "friction coefficient mu (mu_k for LuGre); default: the law's (0.1)", "--friction-coefficient", "nonnegative",
+        "clearance",
+        "clearance",
+        float,
+        5e-4,
+        "m",
+        "radial clearance c = R_B - R_J",
+        "--clearance",
+        "positive",
         per_joint=True,
     ),
-    Setting("clearance", "static_friction", float, None, "", "LuGre static coefficient mu_s (default 0.15)", None, "nonnegative", per_joint=True),
-    Setting("clearance", "bristle_stiffness", float, None, "1/m", "LuGre sigma0 (default 1e5)", None, "positive", per_joint=True),
-    Setting("clearance", "bristle_damping", float, None, "s/m", "LuGre sigma1 (default 316)", None, "nonnegative", per_joint=True),
-    Setting("clearance", "stribeck_velocity", float, None, "m/s", "LuGre Stribeck velocity v_s (default 1e-3)", None, "positive", per_joint=True),
-    Setting("clearance", "penetration_width", float, 1e-7, "m", "smoothing width of the penetration", None, "positive", per_joint=True),
-    Setting("clearance", "memory_width", float, 1e-7, "m", "smoothing width of the impact-velocity memory freeze", None, "positive", per_joint=True),
-    Setting("clearance", "velocity_width", float, 1e-5, "m/s", "smoothing width of |v| and sign(v)", None, "positive", per_joint=True),
-    Setting("clearance", "memory_rate", float, 1e6, "1/s", "relaxation rate k_m of the impact-velocity memory", None, "positive", per_joint=True),
     Setting(
-        "clearance", "continuous_fraction", float, 0.05, "",
+        "clearance",
+        "journal_body",
+        str,
+        None,
+        "",
+        "which of the joint's two bodies carries the pin (journal); the other carries the hole (bearing); "
+        "default: the joint's second body (slider_crank B: slider)",
+        shared=False,
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "bearing_radius",
+        float,
+        0.01,
+        "m",
+        "bearing (hole) radius R_B",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "pin_length",
+        float,
+        0.01,
+        "m",
+        "pin length h (cylindrical and foundation laws)",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "young_modulus",
+        float,
+        207e9,
+        "Pa",
+        "Young's modulus E of bearing and journal",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "poisson_ratio",
+        float,
+        0.3,
+        "",
+        "Poisson's ratio of bearing and journal, in (0, 0.5)",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "contact",
+        str,
+        "hybrid",
+        "",
+        f"normal contact law: {', '.join(CONTACT_LAWS)}",
+        "--contact",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "restitution",
+        float,
+        0.9,
+        "",
+        "restitution coefficient c_e in (0, 1] (damped laws)",
+        "--restitution",
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "gauss_points",
+        int,
+        3,
+        "",
+        "hybrid law: Gauss points per element m1",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "elements",
+        int,
+        10,
+        "",
+        "hybrid law: elements over the contact arc m2",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "friction",
+        str,
+        "lugre",
+        "",
+        f"friction law: {', '.join(FRICTION_LAWS)}",
+        "--friction",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "friction_coefficient",
+        float,
+        None,
+        "",
+        "friction coefficient mu (mu_k for LuGre); default: the law's (0.1)",
+        "--friction-coefficient",
+        "nonnegative",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "static_friction",
+        float,
+        None,
+        "",
+        "LuGre static coefficient mu_s (default 0.15)",
+        None,
+        "nonnegative",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "bristle_stiffness",
+        float,
+        None,
+        "1/m",
+        "LuGre sigma0 (default 1e5)",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "bristle_damping",
+        float,
+        None,
+        "s/m",
+        "LuGre sigma1 (default 316)",
+        None,
+        "nonnegative",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "stribeck_velocity",
+        float,
+        None,
+        "m/s",
+        "LuGre Stribeck velocity v_s (default 1e-3)",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "penetration_width",
+        float,
+        1e-7,
+        "m",
+        "smoothing width of the penetration",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "memory_width",
+        float,
+        1e-7,
+        "m",
+        "smoothing width of the impact-velocity memory freeze",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "velocity_width",
+        float,
+        1e-5,
+        "m/s",
+        "smoothing width of |v| and sign(v)",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "memory_rate",
+        float,
+        1e6,
+        "1/s",
+        "relaxation rate k_m of the impact-velocity memory",
+        None,
+        "positive",
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "continuous_fraction",
+        float,
+        0.05,
+        "",
         "contact lasting at least this fraction of a crank period counts as continuous (else impact); in (0, 1)",
-        None, "fraction",
+        None,
+        "fraction",
     ),
     # [simulation]
-    Setting("simulation", "revolutions", float, 2.0, "rev", "simulated revolutions of the driven body (may be fractional)", "--revolutions", "positive"),
     Setting(
-        "simulation", "points_per_revolution", int, 360, "1/rev", "saved instants per revolution (output grid)",
-        "--points-per-revolution", "positive",
+        "simulation",
+        "revolutions",
+        float,
+        2.0,
+        "rev",
+        "simulated revolutions of the driven body (may be fractional)",
+        "--revolutions",
+        "positive",
     ),
     Setting(
-        "simulation", "skip_revolutions", float, 1.0, "rev",
+        "simulation",
+        "points_per_revolution",
+        int,
+        360,
+        "1/rev",
+        "saved instants per revolution (output grid)",
+        "--points-per-revolution",
+        "positive",
+    ),
+    Setting(
+        "simulation",
+        "skip_revolutions",
+        float,
+        1.0,
+        "rev",
         "first revolutions left out of the plots, statistics and contact-mode shares (the start-up transient); "
         "results.csv keeps every instant; must be smaller than revolutions",
-        "--skip-revolutions", "nonnegative",
+        "--skip-revolutions",
+        "nonnegative",
     ),
     Setting(
-        "simulation", "start", str, "centred", "",
+        "simulation",
+        "start",
+        str,
+        "centred",
+        "",
         "initial journal positions: centred (eccentricity 0, as measured data may begin) or wall (on the "
         "bearing wall, pushed along the ideal joint's reaction: jaxclear.wall_start; no impact has happened, "
         "so the damped contact laws see the minimum impact velocity and damp heavily while contact lasts)",
-        "--start", choices=STARTS,
+        "--start",
+        choices=STARTS,
     ),
     # [solver]
     Setting("solver", "method", str, DEFAULT_SOLVER, "", solver_help(), "--solver"),
-    Setting("solver", "rtol", float, None, "", "relative tolerance of the adaptive step", "--rtol", "positive"),
-    Setting("solver", "atol", float, None, "", "absolute tolerance of the adaptive step", "--atol", "positive"),
-    Setting("solver", "max_steps", int, None, "", "most solver steps before giving up", "--max-steps", "positive"),
     Setting(
-        "solver", "fast_compile", bool, True, "",
+        "solver",
+        "rtol",
+        float,
+        None,
+        "",
+        "relative tolerance of the adaptive step",
+        "--rtol",
+        "positive",
+    ),
+    Setting(
+        "solver",
+        "atol",
+        float,
+        None,
+        "",
+        "absolute tolerance of the adaptive step",
+        "--atol",
+        "positive",
+    ),
+    Setting(
+        "solver",
+        "max_steps",
+        int,
+        None,
+        "",
+        "most solver steps before giving up",
+        "--max-steps",
+        "positive",
+    ),
+    Setting(
+        "solver",
+        "fast_compile",
+        bool,
+        True,
+        "",
         "compile with XLA's CPU fusion emitters off (XLA_FLAGS=--xla_cpu_use_fusion_emitters=false): "
         "measured 5.4 -> 2.2 s XLA time for about a tenth longer runs (Tsit5, three joints)",
         "--fast-compile",
     ),
     # [output]
-    Setting("output", "directory", str, "jaxclear-out", "", "output folder (created; must be writable)", "--out"),
+    Setting(
+        "output",
+        "directory",
+        str,
+        "jaxclear-out",
+        "",
+        "output folder (created; must be writable)",
+        "--out",
+    ),
     Setting("output", "plots", bool, True, "", "write the PNG plots", "--plots"),
 )
 SECTIONS = tuple(dict.fromkeys(s.section for s in SETTINGS))
@@ -248,7 +662,9 @@ def format_default(s: Setting) -> str:
         by_value: dict[str, list[str]] = {}
         for name, preset in PRESETS.items():
             by_value.setdefault(f"{getattr(preset, s.key):g}", []).append(name)
-        return "preset's: " + ", ".join(f"{'/'.join(names)} {value}" for value, names in by_value.items())
+        return "preset's: " + ", ".join(
+            f"{'/'.join(names)} {value}" for value, names in by_value.items()
+        )
     if s.default is None:
         return "see description"
     if isinstance(s.default, Mapping):
@@ -275,7 +691,11 @@ def config_reference() -> str:
             unit = f" [{s.unit}]" if s.unit else ""
             flag = f" ({s.flag})" if s.flag else ""
             where = f" ({', '.join(s.mechanisms)} only)" if s.mechanisms else ""
-            scope = " (per-joint table only)" if not s.shared else (" (also per joint)" if s.per_joint else "")
+            scope = (
+                " (per-joint table only)"
+                if not s.shared
+                else (" (also per joint)" if s.per_joint else "")
+            )
             lines.append(f"    {s.key}{unit} = {format_default(s)}{flag}{where}{scope}: {s.help}")
     return "\n".join(lines)
 
@@ -295,7 +715,13 @@ def type_ok(s: Setting, value) -> bool:
 
 
 def type_name(s: Setting) -> str:
-    return {float: "a number", int: "an integer", str: "a string", bool: "true or false", "gravity": "true, false or a number"}[s.kind]
+    return {
+        float: "a number",
+        int: "an integer",
+        str: "a string",
+        bool: "true or false",
+        "gravity": "true, false or a number",
+    }[s.kind]
 
 
 def check_value(s: Setting, value, source: str) -> None:
@@ -322,7 +748,9 @@ def check_value(s: Setting, value, source: str) -> None:
     if s.check == "nonnegative" and not value >= 0:
         raise UsageError(f"{source} must be zero or positive, got {value!r}")
     if s.check == "fraction" and not 0 < value < 1:
-        raise UsageError(f"{source} must be in (0, 1), got {value!r}; it is a fraction of a crank period")
+        raise UsageError(
+            f"{source} must be in (0, 1), got {value!r}; it is a fraction of a crank period"
+        )
 
 
 def _empty_hint(s: Setting) -> str:
@@ -349,10 +777,20 @@ def _number(kind):
     return convert
 
 
-METAVARS = {"directory": "DIR", "joints": "LIST", "contact": "LAW", "friction": "LAW", "name": "NAME", "start": "HOW", "method": "NAME"}
+METAVARS = {
+    "directory": "DIR",
+    "joints": "LIST",
+    "contact": "LAW",
+    "friction": "LAW",
+    "name": "NAME",
+    "start": "HOW",
+    "method": "NAME",
+}
 
 
-def add_setting_arguments(parser: argparse.ArgumentParser, sections: tuple[str, ...] = SECTIONS) -> None:
+def add_setting_arguments(
+    parser: argparse.ArgumentParser, sections: tuple[str, ...] = SECTIONS
+) -> None:
     """Add a flag for every ``Setting`` of ``sections`` that has one (the shared run options).
 
     Values land in ``args.<section>__<key>`` (``None`` when not given), read by
@@ -362,16 +800,37 @@ def add_setting_arguments(parser: argparse.ArgumentParser, sections: tuple[str, 
         if s.flag is None or s.section not in sections:
             continue
         unit = f" [{s.unit}]" if s.unit else ""
-        default = "" if s.default is None and s.section != "solver" else f" (default: {format_default(s)})"
+        default = (
+            ""
+            if s.default is None and s.section != "solver"
+            else f" (default: {format_default(s)})"
+        )
         if s.kind is bool or s.kind == "gravity":
             text = s.flag_help or s.help
-            parser.add_argument(s.flag, dest=s.dest, action=argparse.BooleanOptionalAction, default=None, help=f"{text}{default}")
+            parser.add_argument(
+                s.flag,
+                dest=s.dest,
+                action=argparse.BooleanOptionalAction,
+                default=None,
+                help=f"{text}{default}",
+            )
         elif s.kind is str:
-            parser.add_argument(s.flag, dest=s.dest, default=None, metavar=METAVARS.get(s.key, "NAME"), help=f"{s.help}{default}")
+            parser.add_argument(
+                s.flag,
+                dest=s.dest,
+                default=None,
+                metavar=METAVARS.get(s.key, "NAME"),
+                help=f"{s.help}{default}",
+            )
         else:
             metavar = "N" if s.kind is int else "X"
             parser.add_argument(
-                s.flag, dest=s.dest, type=_number(s.kind), default=None, metavar=metavar, help=f"{s.help}{unit}{default}"
+                s.flag,
+                dest=s.dest,
+                type=_number(s.kind),
+                default=None,
+                metavar=metavar,
+                help=f"{s.help}{unit}{default}",
             )
 
 
@@ -391,7 +850,12 @@ def markdown_reference() -> str:
     ``tests/test_cli.py`` checks that it is current)."""
     out = []
     for section in SECTIONS:
-        out += [f"### `[{section}]`", "", "| key | unit | default | flag | description |", "| --- | --- | --- | --- | --- |"]
+        out += [
+            f"### `[{section}]`",
+            "",
+            "| key | unit | default | flag | description |",
+            "| --- | --- | --- | --- | --- |",
+        ]
         for s in SETTINGS:
             if s.section != section:
                 continue
