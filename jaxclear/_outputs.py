@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from ._trajectory import PER_INSTANT
 from .model import RevoluteJoint, TranslationalJoint
 
 CSV_NAME = "results.csv"
@@ -294,20 +295,6 @@ def body_columns(traj) -> list[Column]:
     return cols
 
 
-PER_INSTANT = (
-    "t",
-    "q",
-    "qd",
-    "qdd",
-    "internal_state",
-    "multipliers",
-    "input_torque",
-    "reactions",
-    "constraint_violation",
-    "velocity_violation",
-    "clearance",
-)
-"""``Trajectory`` fields with one entry per saved instant (as in ``Trajectory.truncated``)."""
 
 
 def _select(traj, keep: np.ndarray):

@@ -22,6 +22,22 @@ as values, not raised by host callbacks (``eqx.error_if``), so that the compiled
 stored in JAX's persistent compilation cache."""
 
 
+PER_INSTANT = (
+    "t",
+    "q",
+    "qd",
+    "qdd",
+    "internal_state",
+    "multipliers",
+    "input_torque",
+    "reactions",
+    "constraint_violation",
+    "velocity_violation",
+    "clearance",
+)
+"""``Trajectory`` fields with one entry per saved instant (the others are per run)."""
+
+
 class Trajectory(eqx.Module):
     """A simulated trajectory sampled on the output grid.
 
@@ -110,22 +126,9 @@ class Trajectory(eqx.Module):
         Only for a single (unbatched) trajectory.
         """
         keep = int(np.sum(np.asarray(self.t) <= float(self.t_final)))
-        per_instant = (
-            "t",
-            "q",
-            "qd",
-            "qdd",
-            "internal_state",
-            "multipliers",
-            "input_torque",
-            "reactions",
-            "constraint_violation",
-            "velocity_violation",
-            "clearance",
-        )
         changes = {
             name: jax.tree_util.tree_map(lambda x: x[:keep], getattr(self, name))
-            for name in per_instant
+            for name in PER_INSTANT
         }
         return dataclasses.replace(self, **changes)
 
