@@ -90,6 +90,24 @@ def load():
     return os.getloadavg()[0]
 
 
+def case_mechanism(case: str):
+    """The benchmark slider–crank of a case in ``CASES`` (L-N contact, c_e = 0.9, no gravity)."""
+    from jaxclear.contact import LankaraniNikravesh
+    from jaxclear.friction import LuGre, ModifiedCoulomb
+    from jaxclear.mechanisms import slider_crank
+
+    spec = CASES[case]
+    friction = ModifiedCoulomb(0.01) if spec["friction"] == "modified-coulomb" else LuGre()
+    return slider_crank(
+        rpm=RPM,
+        clearance_joints=",".join(spec["joints"]),
+        clearance=CLEARANCE,
+        contact_law=LankaraniNikravesh(restitution=0.9),
+        friction_law=friction,
+        gravity=False,
+    )
+
+
 def grid(revolutions):
     t1 = revolutions * 60.0 / RPM
     n = int(round(revolutions * POINTS_PER_REVOLUTION)) + 1
@@ -126,21 +144,10 @@ def jax_worker(
     import jax.numpy as jnp
 
     import jaxclear
-    from jaxclear.contact import LankaraniNikravesh
-    from jaxclear.friction import LuGre, ModifiedCoulomb
-    from jaxclear.mechanisms import slider_crank
 
     t_import = time.perf_counter() - t_import
     spec = CASES[case]
-    friction = ModifiedCoulomb(0.01) if spec["friction"] == "modified-coulomb" else LuGre()
-    mech = slider_crank(
-        rpm=RPM,
-        clearance_joints=",".join(spec["joints"]),
-        clearance=CLEARANCE,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=friction,
-        gravity=False,
-    )
+    mech = case_mechanism(case)
     config = jaxclear.SolverConfig(method=solver, rtol=RTOL, atol=ATOL, max_steps=max_steps)
     t1, ts = grid(revolutions)
     out = dict(case=case, solver=solver, compile_method=compile_method, import_s=t_import)
@@ -241,20 +248,9 @@ def first_contact_reference(case, path):
     """Converged journal orbits over the first ``FIRST_CONTACT_S`` (Dopri8, rtol 1e-12), saved to ``path``
     on a grid of the timed runs' size (so each solver reuses its compiled code)."""
     import jaxclear
-    from jaxclear.contact import LankaraniNikravesh
-    from jaxclear.friction import LuGre, ModifiedCoulomb
-    from jaxclear.mechanisms import slider_crank
 
     spec = CASES[case]
-    friction = ModifiedCoulomb(0.01) if spec["friction"] == "modified-coulomb" else LuGre()
-    mech = slider_crank(
-        rpm=RPM,
-        clearance_joints=",".join(spec["joints"]),
-        clearance=CLEARANCE,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=friction,
-        gravity=False,
-    )
+    mech = case_mechanism(case)
     n = grid(2.0)[1].size
     ts = np.linspace(0.0, FIRST_CONTACT_S, n)
     cfg = jaxclear.SolverConfig(

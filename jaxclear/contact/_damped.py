@@ -20,7 +20,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_positive, check_restitution
+from .._checks import check_restitution
 from .._smooth import safe_pow, smooth_ramp, smooth_step
 from ._base import (
     AbstractContactLaw,
@@ -29,7 +29,7 @@ from ._base import (
     Smoothing,
     _array,
 )
-from ._hertz import _optional_array, resolve_stiffness
+from ._hertz import _optional_array, check_stiffness_and_exponent, resolve_stiffness
 
 
 def clamp_nonnegative(x: ArrayLike, width: ArrayLike) -> Float[Array, "..."]:
@@ -149,16 +149,7 @@ class AbstractDampedContactLaw(AbstractContactLaw):
     restitution: Float[Array, ""] = eqx.field(converter=_array, default=0.9)
 
     def __check_init__(self):
-        if self.stiffness is not None:
-            check_positive(
-                type(self).__name__,
-                "stiffness",
-                self.stiffness,
-                fix="pass K in N/m^n, or None for Hertz K",
-            )
-        check_positive(
-            type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)"
-        )
+        check_stiffness_and_exponent(type(self).__name__, self.stiffness, self.exponent)
         check_restitution(type(self).__name__, self.restitution)
 
     @abc.abstractmethod

@@ -23,6 +23,13 @@ def _optional_array(x):
     return None if x is None else _array(x)
 
 
+def check_stiffness_and_exponent(owner: str, stiffness, exponent) -> None:
+    """Checks of a power law K δ^n: K > 0 if given (``None`` means the Hertz K), n > 0."""
+    if stiffness is not None:
+        check_positive(owner, "stiffness", stiffness, fix="pass K in N/m^n, or None for Hertz K")
+    check_positive(owner, "exponent", exponent, fix="pass n > 0 (1.5 for Hertz)")
+
+
 def resolve_stiffness(
     stiffness: Float[Array, ""] | None, geometry: ContactGeometry
 ) -> Float[Array, ""]:
@@ -43,16 +50,7 @@ class Hertz(AbstractContactLaw):
     exponent: Float[Array, ""] = eqx.field(converter=_array, default=1.5)
 
     def __check_init__(self):
-        if self.stiffness is not None:
-            check_positive(
-                type(self).__name__,
-                "stiffness",
-                self.stiffness,
-                fix="pass K in N/m^n, or None for Hertz K",
-            )
-        check_positive(
-            type(self).__name__, "exponent", self.exponent, fix="pass n > 0 (1.5 for Hertz)"
-        )
+        check_stiffness_and_exponent(type(self).__name__, self.stiffness, self.exponent)
 
     def __call__(
         self, kin: ContactKinematics, geometry: ContactGeometry, smoothing: Smoothing
