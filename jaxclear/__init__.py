@@ -31,8 +31,13 @@ from .model import ClearanceJoint as ClearanceJoint  # noqa: E402
 from .model import ConstantSpeedDriver as ConstantSpeedDriver  # noqa: E402
 from .model import FunctionDriver as FunctionDriver  # noqa: E402
 from .model import Mechanism as Mechanism  # noqa: E402
+from .model import ParameterInfo as ParameterInfo  # noqa: E402
 from .model import RevoluteJoint as RevoluteJoint  # noqa: E402
 from .model import SpringDamper as SpringDamper  # noqa: E402
 from .model import TranslationalJoint as TranslationalJoint  # noqa: E402
+from .model import get_parameter as get_parameter  # noqa: E402
+from .model import parameter_info as parameter_info  # noqa: E402
+from .model import parameter_names as parameter_names  # noqa: E402
+from .model import with_parameters as with_parameters  # noqa: E402
 
 __version__ = "0.1.0"

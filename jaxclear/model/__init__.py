@@ -15,3 +15,8 @@ from ._joints import RevoluteJoint as RevoluteJoint
 from ._joints import TranslationalJoint as TranslationalJoint
 from ._mechanism import Mechanism as Mechanism
 from ._mechanism import describe as describe
+from ._parameters import ParameterInfo as ParameterInfo
+from ._parameters import get_parameter as get_parameter
+from ._parameters import parameter_info as parameter_info
+from ._parameters import parameter_names as parameter_names
+from ._parameters import with_parameters as with_parameters
