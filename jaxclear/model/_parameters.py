@@ -31,6 +31,7 @@ import math
 from collections.abc import Callable, Mapping
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
@@ -99,6 +100,14 @@ _FIELD_INFO = {
     "free_length": ("m", (0.0, math.inf), "free length"),
     "torque": ("N m", UNBOUNDED, "applied torque"),
 }
+
+
+def _concrete(x, default: float) -> float:
+    """float(x) for a concrete value, ``default`` for a tracer (inside a transformation)."""
+    try:
+        return float(x)
+    except (TypeError, jax.errors.ConcretizationTypeError):
+        return default
 
 
 def _scalar_fields(module) -> list[str]:
@@ -206,7 +215,7 @@ def _clearance_entries(mechanism: Mechanism) -> list[_Entry]:
                     f"{J}.clearance",
                     "m",
                     f"radial clearance c = R_B - R_J of {owner} (sets R_J, keeps R_B)",
-                    (0.0, float(joint.geometry.bearing_radius)),
+                    (0.0, _concrete(joint.geometry.bearing_radius, math.inf)),
                 ),
                 lambda m, geometry=geometry: geometry(m).clearance,
                 lambda m, v, geometry=geometry, set_geometry=set_geometry: set_geometry(
