@@ -11,8 +11,12 @@ jax.config.update("jax_enable_x64", True)
 from . import analysis as analysis  # noqa: E402
 from . import mechanisms as mechanisms  # noqa: E402
 from ._errors import AssemblyError as AssemblyError  # noqa: E402
+from ._errors import DataError as DataError  # noqa: E402
 from ._errors import ModelError as ModelError  # noqa: E402
 from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._measurements import Measurements as Measurements  # noqa: E402
+from ._signals import signal_names as signal_names  # noqa: E402
+from ._signals import signals as signals  # noqa: E402
 from ._simulate import assemble as assemble  # noqa: E402
 from ._simulate import simulate as simulate  # noqa: E402
 from ._simulate import simulate_batch as simulate_batch  # noqa: E402

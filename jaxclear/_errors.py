@@ -5,6 +5,12 @@ class ModelError(ValueError):
     """A model object was built with an invalid parameter (non-positive mass, NaN, ...)."""
 
 
+class DataError(ValueError):
+    """Measured data (a CSV file or arrays given for a fit) cannot be used: unreadable, malformed,
+    non-finite, times out of order, unknown columns, ... The one-line message names the file, the
+    column and row, and the fix."""
+
+
 class AssemblyError(ValueError):
     """Consistent initial positions/velocities could not be found (geometry does not close,
     redundant or singular constraints)."""
