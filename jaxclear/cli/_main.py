@@ -11,11 +11,11 @@ import os
 import sys
 from typing import NoReturn
 
-from . import _run
+from . import _fit, _run
 from ._common import EXIT_FAILURE, EXIT_USAGE, PROG, RunError, UsageError, one_line
 from ._settings import all_flags
 
-SUBCOMMANDS = {"run": _run}
+SUBCOMMANDS = {"run": _run, "fit": _fit}
 """Subcommand name -> module with ``add_parser(subparsers, parser_class)`` and ``run(args, argv)``."""
 
 
