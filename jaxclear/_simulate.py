@@ -10,6 +10,7 @@ import jax.core  # jax.core.Tracer: imported for type checkers (jax imports it i
 import jax.numpy as jnp
 import numpy as np
 from jax.interpreters import ad
+from jaxtyping import ArrayLike
 
 from ._checks import is_concrete
 from ._errors import AssemblyError, ModelError, SimulationError
@@ -314,15 +315,15 @@ def _is_traced(tree) -> bool:
 
 def simulate(
     mechanism,
-    t1: float,
+    t1: ArrayLike,
     *,
-    t0: float = 0.0,
+    t0: ArrayLike = 0.0,
     ts=None,
     num_points: int | None = None,
     solver: "str | SolverConfig" = "auto",
     y0=None,
     adjoint: "str | diffrax.AbstractAdjoint" = "auto",
-    statistics_start: float | None = None,
+    statistics_start: ArrayLike | None = None,
     extremes: bool = True,
     progress: bool = False,
     throw: bool = True,
@@ -485,14 +486,14 @@ def failure_error(traj: Trajectory, config: SolverConfig) -> SimulationError:
 def simulate_batch(
     build: Callable[[Any], Any],
     parameters: Any,
-    t1: float,
+    t1: ArrayLike,
     *,
-    t0: float = 0.0,
+    t0: ArrayLike = 0.0,
     ts=None,
     num_points: int | None = None,
     solver: "str | SolverConfig" = "auto",
     adjoint: "str | diffrax.AbstractAdjoint" = "auto",
-    statistics_start: float | None = None,
+    statistics_start: ArrayLike | None = None,
     extremes: bool = True,
 ) -> Trajectory:
     """Simulate many variants of a mechanism in one vectorised solve: ``jax.vmap`` of ``simulate``.
