@@ -6,6 +6,10 @@ constraint Jacobians, index-1 equations with Baumgarte stabilisation, multiplier
 complement (M is diagonal).  Two contact modes:
 
 * ``"sharp"``: the hybrid model; events on delta = e - c, impact velocity latched at each onset;
+  a joint in free flight gets no contact force (so the vector field is smooth between events and
+  the steps that end at an event are not polluted by forces beyond it).  An onset the event
+  search misses (delta up and down inside one step) raises RuntimeError once the journal is
+  found past the wall (> 1e-11 m at a segment end or sample); ``max_step`` bounds such misses;
 * ``"smooth"``: docs/model.md §5 -- C1 ramps for the penetration and the damping factor, and an
   impact-velocity memory state m per joint, m' = w(delta) [d(delta')/dt + k_m (delta' - m)].
 
@@ -30,6 +34,16 @@ dropped only at e = 0.  The differences are O(w_factor) = 1e-3 relative in F_N a
 floor; they matter only for comparing the two codes as the *same* model.
 Sign conventions: crank_torque > 0 means the motor does positive work when omega > 0; the reaction
 of an ideal joint is the force magnitude |lambda_J|.  Eccentricities are global x/y components.
+
+Per-joint options: ``clearance`` is a float (every clearance joint) or a mapping joint -> c (m),
+e.g. ``{"A": 3.5e-4, "B": 2.5e-4}``; the journal radius is R_B - c and the Hertz K is the joint's.
+``journal_body`` maps a joint to the body that carries its pin, e.g. ``{"B": "rod"}`` ("pin on
+the rod": bearing hole in the slider at (0, 0), pin on the rod at (L/2, 0)); by default the pin is
+on the joint's second body of ``JOINTS`` (O: crank, A: rod, B: slider), as in jaxclear's
+``ClearanceJoint.replacing``.  Whichever body carries it, e = r_journal - r_bearing, the force
+f = -F_N n + F_T t acts on the journal at r_journal + R_J n and -f on the bearing at
+r_bearing + R_B n.  Journals start centred (e = 0) with the ideal-joint velocities.
+``simulate(t_eval=...)`` returns the signals on any increasing time grid from t >= 0.
 """
 
 import time
@@ -48,6 +62,19 @@ JOINTS = {
     "A": (0, (R_CRANK / 2, 0.0), 1, (-L_ROD / 2, 0.0)),
     "B": (1, (L_ROD / 2, 0.0), 2, (0.0, 0.0)),
 }
+BODY_INDEX = {"ground": -1, "crank": 0, "rod": 1, "slider": 2}
+
+
+def joint_geometry(j, journal_body=None):
+    """(bearing body, its point, journal body, its point) of joint j with the pin on journal_body
+    (a name in BODY_INDEX; None: the default of JOINTS, pin on the second body)."""
+    i, si, k, sk = JOINTS[j]
+    if journal_body is None or BODY_INDEX[journal_body] == k:
+        return i, si, k, sk
+    if BODY_INDEX[journal_body] != i:
+        names = [n for n, b in BODY_INDEX.items() if b in (i, k)]
+        raise ValueError(f"journal_body of joint {j} must be one of {names}, got {journal_body!r}")
+    return k, sk, i, si
 
 
 def ideal_closed_form(theta, omega, r=R_CRANK, rod=L_ROD):
@@ -167,15 +194,37 @@ class SliderCrank:
         track_work=False,
         w_v=1e-5,
         smoothing_variant="jaxclear",
+        journal_body=None,
     ):
         assert mode in ("smooth", "sharp") and set(clearance_joints) <= set("OAB")
         assert smoothing_variant in ("jaxclear", "original"), smoothing_variant
         self.cj = tuple(j for j in "OAB" if j in clearance_joints)
         self.ij = tuple(j for j in "OAB" if j not in self.cj)
         self.mode, self.omega, self.track_work = mode, rpm * np.pi / 30.0, track_work
-        self.RB, self.RJ, self.c = bearing_radius, bearing_radius - clearance, clearance
+        journal_body = dict(journal_body or {})
+        if isinstance(clearance, dict):
+            if set(clearance) != set(self.cj):
+                raise ValueError(f"clearance: give one value per clearance joint {self.cj}")
+            cs = {j: float(clearance[j]) for j in self.cj}
+        else:
+            cs = {j: float(clearance) for j in self.cj}
+        if not set(journal_body) <= set(self.cj):
+            raise ValueError(f"journal_body: joints must be among the clearance joints {self.cj}")
+        self.joints = {j: joint_geometry(j, journal_body.get(j)) for j in self.cj}
+        self.journal_body = {
+            j: next(n for n, b in BODY_INDEX.items() if b == self.joints[j][2]) for j in self.cj
+        }
         sigma = (1 - nu**2) / E
-        self.K = 4.0 / (3.0 * 2 * sigma) * np.sqrt(self.RB * self.RJ / clearance)
+        self.RB = bearing_radius
+        self.c_of = cs  # per clearance joint: c, R_J = R_B - c, Hertz K (docs/model.md §3)
+        self.RJ_of = {j: bearing_radius - c for j, c in cs.items()}
+        self.K_of = {
+            j: 4.0 / (3.0 * 2 * sigma) * np.sqrt(bearing_radius * self.RJ_of[j] / c)
+            for j, c in cs.items()
+        }
+        if not isinstance(clearance, dict):  # the scalar attributes of a common clearance
+            self.c, self.RJ = clearance, bearing_radius - clearance
+            self.K = 4.0 / (3.0 * 2 * sigma) * np.sqrt(self.RB * self.RJ / clearance)
         self.chi = 0.75 * (1.0 - restitution**2)
         self.friction = friction
         self.flaw = friction_law(friction)
@@ -254,24 +303,27 @@ class SliderCrank:
         zdot = vT - p["sigma0"] * speed * z / g
         return -(p["sigma0"] * z + p["sigma1"] * fade * zdot + p["sigma2"] * vT) * FN, zdot
 
-    def contact(self, j, q, qd, Q, dminus, z=0.0):
-        i, si, k, sk = JOINTS[j]
+    def contact(self, j, q, qd, Q, dminus, z=0.0, active=True):
+        """Kinematics and forces of clearance joint j (forces added to Q).  ``active=False``
+        (sharp mode, joint in free flight) applies no contact force whatever delta is."""
+        i, si, k, sk = self.joints[j]
+        c, RJ, K = self.c_of[j], self.RJ_of[j], self.K_of[j]
         rI, vI, AI, BI = _point(q, qd, i, si)
         rII, vII, AII, BII = _point(q, qd, k, sk)
         e_vec, edot = rII - rI, vII - vI
         e = np.hypot(e_vec[0], e_vec[1])
         n = e_vec / e if e > 1e-15 else np.array([1.0, 0.0])
         t_vec = np.array([-n[1], n[0]])
-        delta, ddelta = e - self.c, n @ edot
+        delta, ddelta = e - c, n @ edot
         if self.mode == "sharp":
             fac = max(0.0, 1.0 + self.chi * ddelta / dminus)
-            FN = self.K * max(delta, 0.0) ** 1.5 * fac
+            FN = K * max(delta, 0.0) ** 1.5 * fac if active else 0.0
         else:
             dm = self.impact_floor(dminus)  # memory state; smooth max with v_min
             fac = self.factor_clamp(1.0 + self.chi * ddelta / dm)
-            FN = self.K * ramp(delta, self.w_delta) ** 1.5 * fac
+            FN = K * ramp(delta, self.w_delta) ** 1.5 * fac
         armI = (AI if i >= 0 else 0.0) + self.RB * n  # CM -> contact point Q_I
-        armII = AII + self.RJ * n  # CM -> contact point Q_II
+        armII = AII + RJ * n  # CM -> contact point Q_II
         # material velocities of the contact points: v_P + phi' k x (arm - A s)
         vQI = vI + (qd[3 * i + 2] * (_kx(armI) - BI) if i >= 0 else 0.0)
         vQII = vII + qd[3 * k + 2] * (_kx(armII) - BII)
@@ -303,14 +355,19 @@ class SliderCrank:
             BII=BII,
         )
 
-    def evaluate(self, t, y, dminus=None):
-        """Full evaluation: returns (ydot, info dict)."""
+    def evaluate(self, t, y, dminus=None, active=None):
+        """Full evaluation: returns (ydot, info dict).
+
+        Sharp mode: ``dminus`` the latched impact velocities, ``active`` which joints are in
+        their contact phase (None: all; a joint in free flight gets no force, so that each
+        segment between events has a smooth vector field)."""
         self.n_eval += 1
         q, qd = y[:9], y[9:18]
         mem = y[18 : 18 + self.nm] if self.mode == "smooth" else dminus
         Q = self.Qg.copy()
         zs = y[self.iz : self.iz + self.nz] if self.nz else np.zeros(self.nc)
-        cinfo = [self.contact(j, q, qd, Q, mem[a], zs[a]) for a, j in enumerate(self.cj)]
+        act = [True] * self.nc if active is None else active
+        cinfo = [self.contact(j, q, qd, Q, mem[a], zs[a], act[a]) for a, j in enumerate(self.cj)]
         Phi, Pq, gam, Phid = self.constraints(t, q, qd)
         PM = Pq * self.minv
         rhs = gam - 2 * self.alpha * Phid - self.beta**2 * Phi
@@ -329,7 +386,7 @@ class SliderCrank:
                     dd = ci["n"] @ eacc
                     if self.variant == "jaxclear":  # (t'e')^2 / max(e, 1e-3 c)
                         dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / max(
-                            ci["e"], 1e-3 * self.c
+                            ci["e"], 1e-3 * self.c_of[self.cj[a]]
                         )
                     elif ci["e"] > 1e-15:
                         dd += (ci["edot"] @ ci["edot"] - ci["ddelta"] ** 2) / ci["e"]
@@ -365,9 +422,9 @@ class SliderCrank:
         for j in self.cj:
             d = self.contact(j, y[:9], qd, np.zeros(9), 1.0)["delta"]
             if self.mode == "sharp":
-                V += 0.4 * self.K * max(d, 0.0) ** 2.5
+                V += 0.4 * self.K_of[j] * max(d, 0.0) ** 2.5
             else:
-                V += self.K * self.factor_clamp(1.0) * ramp_potential(d, self.w_delta)
+                V += self.K_of[j] * self.factor_clamp(1.0) * ramp_potential(d, self.w_delta)
         return T + V
 
 
@@ -397,9 +454,16 @@ def simulate(
     max_step=np.inf,
     track_work=False,
     count_onsets=True,
+    t_eval=None,
+    journal_body=None,
     **smoothing,
 ):
-    """Simulate; returns dict of arrays on the uniform grid t plus 'stats'.
+    """Simulate; returns dict of arrays on the uniform grid t (or on ``t_eval``) plus 'stats'.
+
+    clearance: m, a float or a mapping joint -> clearance (module doc).
+    journal_body: None or a mapping joint -> body carrying the pin, e.g. {"B": "rod"} (module doc).
+    t_eval: increasing output times >= 0, s; the run starts at t = 0 and ends at t_eval[-1]
+    (``revolutions`` and ``points_per_revolution`` are then ignored).
 
     smoothing: w_delta, w_m, k_m, v_min, w_factor (smooth mode; v_min also floors the latched
     impact velocity in sharp mode), smoothing_variant ("jaxclear" or "original", see the module
@@ -418,12 +482,19 @@ def simulate(
         gravity,
         clearance,
         track_work=track_work,
+        journal_body=journal_body,
         **smoothing,
     )
     method = method or ("Radau" if mode == "smooth" else "DOP853")
-    T = revolutions * 60.0 / rpm
-    npts = int(round(revolutions * points_per_revolution)) + 1
-    grid = np.linspace(0.0, T, npts)
+    if t_eval is None:
+        T = revolutions * 60.0 / rpm
+        npts = int(round(revolutions * points_per_revolution)) + 1
+        grid = np.linspace(0.0, T, npts)
+    else:
+        grid = np.array(t_eval, dtype=float)
+        if grid.ndim != 1 or grid.size < 2 or grid[0] < 0 or np.any(np.diff(grid) <= 0):
+            raise ValueError("t_eval: need at least two increasing times >= 0")
+        T, npts = float(grid[-1]), grid.size
     y0 = model.initial_state()
     t_wall = time.perf_counter()
     errstate = np.errstate(over="ignore", invalid="ignore")  # rejected explicit trial steps
@@ -450,9 +521,23 @@ def simulate(
         nfev, njev = sol.nfev, sol.njev
         if sol.t_events is not None:
             onsets[:] = [len(te) for te in sol.t_events]
-        ys, ctx = list(sol.y.T), [None] * npts
+        ys, ctx = list(sol.y.T), [(None, None)] * npts
     else:
         HYST = 1e-14  # m: exit event fires at delta = -1e-14 so it cannot stick at a restart
+        # A joint in free flight gets no force, so an onset that the event search misses (delta
+        # up and down again inside one step: the free-flight vector field is smooth and its steps
+        # can be long) lets the journal pass the wall.  Caught at every segment end and sample.
+        MISSED = 1e-11  # m: delta > MISSED in free flight is a missed onset
+
+        def check_free(t, y, active):
+            for a, j in enumerate(model.cj):
+                d = model.contact(j, y[:9], y[9:18], np.zeros(9), 1.0)["delta"]
+                if not active[a] and d > MISSED:
+                    raise RuntimeError(
+                        f"sharp mode missed a contact onset at joint {j}: delta = {d:.3g} m in "
+                        f"free flight at t = {t:.9g} s; pass a smaller max_step (now {max_step})"
+                    )
+
         in_contact = np.zeros(model.nc, bool)
         dminus = np.full(model.nc, model.v_min)
         t0, y, nseg = 0.0, y0, 0
@@ -466,9 +551,9 @@ def simulate(
                 )
                 for a in range(model.nc)
             ]
-            dm = dminus.copy()
+            dm, act = dminus.copy(), in_contact.copy()
             sol = solve_ivp(
-                lambda t, y: model.evaluate(t, y, dm)[0],
+                lambda t, y: model.evaluate(t, y, dm, act)[0],
                 (t0, T),
                 y,
                 method=method,
@@ -483,12 +568,15 @@ def simulate(
             nfev, njev = nfev + sol.nfev, njev + sol.njev
             if len(sol.t):  # (scipy returns a plain [] when no t_eval point was reached)
                 ys += list(sol.y.T)
-                ctx += [dm] * len(sol.t)
+                ctx += [(dm, act)] * len(sol.t)
+                for tp, yp in zip(sol.t, sol.y.T):
+                    check_free(tp, yp, act)
             if sol.status != 1:
                 break
             hits = [(te[0], a) for a, te in enumerate(sol.t_events) if len(te)]
             t0, a = min(hits)
             y = sol.y_events[a][0]
+            check_free(t0, y, act)
             in_contact[a] = not in_contact[a]
             if in_contact[a]:
                 dd = model.contact(model.cj[a], y[:9], y[9:18], np.zeros(9), 1.0)["ddelta"]
@@ -513,8 +601,13 @@ def simulate(
             "friction_state",
         ):
             out[f"{j}_{key}"] = np.zeros(npts)
+    free_penetration = np.zeros(model.nc)  # sharp: max delta > 0 at samples in free flight
     for p in range(npts):
-        _, info = model.evaluate(grid[p], Y[p], ctx[p])
+        _, info = model.evaluate(grid[p], Y[p], *ctx[p])
+        if ctx[p][1] is not None:
+            for a, ci in enumerate(info["contacts"]):
+                if not ctx[p][1][a]:
+                    free_penetration[a] = max(free_penetration[a], ci["delta"])
         out["slider_a"][p], out["crank_torque"][p] = info["qdd"][6], info["torque"]
         for r, j in enumerate(model.ij):
             out[j + "_reaction"][p] = np.hypot(*info["lam"][2 * r : 2 * r + 2])
@@ -531,6 +624,7 @@ def simulate(
         njev=njev,
         rhs_evals=n_eval,
         onsets=dict(zip(model.cj, onsets.tolist())),
+        free_flight_penetration=dict(zip(model.cj, free_penetration.tolist())),
         wall_time=wall,
         method=method,
         mode=mode,
@@ -589,12 +683,20 @@ def check_ideal(points_per_revolution=3600, assert_ok=True):
 
 
 def check_energy(
-    mode="sharp", method=None, rtol=1e-10, revolutions=1.0, friction=None, assert_ok=True
+    mode="sharp",
+    method=None,
+    rtol=1e-10,
+    revolutions=1.0,
+    friction=None,
+    assert_ok=True,
+    joints=("B",),
+    **options,
 ):
-    """Clearance at B, c = 0.5 mm, c_e = 1: E(t) - E(0) = drive work (frictionless);
-    with friction the difference W - dE (dissipation) must be >= 0 and non-decreasing."""
+    """Clearance at B (or ``joints``), c = 0.5 mm, c_e = 1: E(t) - E(0) = drive work
+    (frictionless); with friction the difference W - dE (dissipation) must be >= 0 and
+    non-decreasing.  ``options``: more ``simulate`` arguments (gravity, clearance, journal_body)."""
     r = simulate(
-        ("B",),
+        joints,
         5000,
         revolutions,
         360,
@@ -605,6 +707,7 @@ def check_energy(
         restitution=1.0,
         friction=friction,
         track_work=True,
+        **options,
     )
     diss = r["drive_work"] - (r["energy"] - r["energy"][0])
     res = dict(
@@ -612,8 +715,8 @@ def check_energy(
         max_drive_work=np.abs(r["drive_work"]).max(),
         final_dissipation=diss[-1],
         min_dissipation_increment=np.diff(diss).min(),
-        onsets=r["stats"]["onsets"]["B"],
-        peak_normal_force=r["B_normal_force"].max(),
+        onsets=sum(r["stats"]["onsets"].values()),
+        peak_normal_force=max(r[j + "_normal_force"].max() for j in joints),
     )
     if assert_ok:
         assert res["onsets"] > 5
