@@ -105,7 +105,7 @@ class LawsonInterpolation(diffrax.AbstractLocalInterpolation):
         del left
         if t1 is not None:
             return self.evaluate(t1) - self.evaluate(t0)
-        theta = (t0 - self.t0) / (self.t1 - self.t0)
+        theta = _rescale(self.t0, t0, self.t1)
         weights = _tsit5_dense_weights(theta)
         plain = self.y0 + jnp.sum(weights[:, None] * self.k, axis=0)
         if not self.rows:
@@ -117,6 +117,15 @@ class LawsonInterpolation(diffrax.AbstractLocalInterpolation):
             weights[:, None] * jnp.exp(exponents) * self.k_rows, axis=0
         )
         return _set_rows(plain, self.rows, decayed)
+
+
+def _rescale(t0, t, t1):
+    """(t − t0) / (t1 − t0), 0 on a zero-length step, with a NaN-free derivative there (double
+    ``where``, as diffrax's ``linear_rescale``): vmapped solves make zero-length steps for members
+    that have finished, and a NaN in the discarded branch would reach the gradient."""
+    empty = t1 == t0
+    span = jnp.where(empty, 1.0, t1 - t0)
+    return jnp.where(empty, 0.0, (t - t0) / span)
 
 
 class LawsonTsit5(diffrax.AbstractAdaptiveSolver):

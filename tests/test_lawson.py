@@ -127,6 +127,21 @@ def test_gradient_and_vmap_through_the_solver():
     np.testing.assert_allclose(grads, -t1 * np.exp(-np.asarray(lams) * t1), rtol=1e-9)
 
 
+def test_vmapped_gradient_is_finite_when_members_finish_apart():
+    """Members with different end times: the one done first makes zero-length steps while the
+    other runs; the dense output must not put a NaN into the gradient (it did: 0/0 in θ)."""
+    term = diffrax.ODETerm(oscillator_with_decay)
+    y0 = jnp.array([1.0, 0.0, 1.0])
+
+    def x_end(lam, t1):
+        ts = jnp.linspace(0.0, 1.0, 5) * t1
+        return solve(term, LawsonTsit5(decay_rate, (2,)), y0, lam, t1, ts).ys[-1, 0]
+
+    grads = jax.vmap(jax.grad(x_end, argnums=1))(jnp.array([1e3, 1e3]), jnp.array([1.0, 2.0]))
+    # x = cos t, so d x(t1) / d t1 = -sin t1
+    np.testing.assert_allclose(grads, -np.sin([1.0, 2.0]), rtol=1e-6)
+
+
 @pytest.fixture(scope="module")
 def one_joint():
     import jaxclear
