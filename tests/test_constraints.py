@@ -184,3 +184,17 @@ def test_constraint_violation_below_strict_tolerance_over_50_revolutions(long_ru
     viol = np.asarray(long_run.constraint_violation)[: 50 * per_rev + 1]
     print(f"max |Φ| over the first 50 revolutions: {viol.max():.3g}")
     assert viol.max() < STRICT_DRIFT_TOL
+
+
+ASSEMBLED_VELOCITY_TOLERANCE = 1e-10  # m/s: was 2.7e-6 with one regularised least-norm correction
+
+
+@pytest.mark.parametrize("name", ["slider_crank", "four_bar"])  # moving_guide does not assemble
+def test_assembled_velocities_satisfy_the_velocity_constraints(name):
+    """Φ_q q̇ + Φ_t = 0 at the assembled state, to round-off (the reference data start exactly so)."""
+    mech = MECHANISMS[name]()
+    y0 = jaxclear.assemble(mech)
+    n = mech.num_coordinates
+    q, qd = y0[:n], y0[n : 2 * n]
+    residual = constraint_velocity(mech, q, qd, 0.0)
+    assert float(jnp.max(jnp.abs(residual))) < ASSEMBLED_VELOCITY_TOLERANCE
