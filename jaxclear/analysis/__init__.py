@@ -16,5 +16,6 @@ from ._modes import contact_modes as contact_modes
 from ._modes import trajectory_modes as trajectory_modes
 from ._optimize import OptimizationResult as OptimizationResult
 from ._optimize import optimize as optimize
+from ._optimize import start_offsets as start_offsets
 from ._parameter_space import FitParameter as FitParameter
 from ._statistics import statistics as statistics

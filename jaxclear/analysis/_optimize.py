@@ -52,7 +52,9 @@ FORWARD_MODE_PARAMETERS = 4
 solves, cheaper to compile than reverse mode); above, in reverse mode."""
 
 VERIFY_RTOL = 1e-10
-"""Relative tolerance of the verification runs (absolute: rtol / 1000)."""
+"""Relative tolerance of the verification runs (absolute: rtol / 1000), or the optimisation's own if
+that is tighter; their method is ``recommended_solver``'s, so the check does not share the
+optimisation's integrator when that is an exponential (Lawson) one."""
 
 
 @dataclasses.dataclass
@@ -255,7 +257,7 @@ def optimize(
             fraction of each joint's clearance.
         solver: settings of the differentiated solves (default ``jaxclear.gradient_solver``).
         verify_solver: settings of the independent check (default: the recommended method at
-            rtol ``VERIFY_RTOL``).
+            ``VERIFY_RTOL`` or the optimisation's rtol, whichever is tighter).
         learning_rate: Adam step size in the unconstrained variables (≈ relative change per step
             for positive parameters). max_iterations: Adam steps.
         progress: a tqdm bar over iterations. callback: called with each history entry.
@@ -273,7 +275,10 @@ def optimize(
     specs = tuple(parse_parameters(mechanism, parameters))
     config = _gradient_solver(mechanism) if solver is None else solver_config(solver, mechanism)
     if verify_solver is None:
-        verify = recommended_solver(mechanism).replace(rtol=VERIFY_RTOL, atol=VERIFY_RTOL * 1e-3)
+        rtol = min(VERIFY_RTOL, config.rtol)
+        verify = recommended_solver(mechanism).replace(
+            rtol=rtol, atol=rtol * 1e-3, max_steps=max(config.max_steps, 100_000)
+        )
     else:
         verify = solver_config(verify_solver, mechanism)
     name = objective if isinstance(objective, str) else getattr(objective, "__name__", "objective")
