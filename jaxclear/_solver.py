@@ -54,6 +54,13 @@ class SolverConfig(eqx.Module):
             fusion emitters off), because the contact sequence is sensitive (docs/model.md §5b).
         newton_rtol, newton_atol: tolerances of the implicit stage equations (chord iteration).
             Loose values (≈√rtol) avoid step-size collapse at impacts (docs/model.md §5b).
+        checkpoints: reverse-mode checkpoints (``reverse_adjoint``): how many solver steps' states
+            ``jax.grad`` through the solve stores. ``None``: diffrax's default, about
+            √(2 max_steps), which recomputes steps between checkpoints in the backward pass; on
+            these contact solves the recomputed steps need not retrace the forward pass, and the
+            gradient then moved with the count (``gradient_solver`` gives the figures). A count of
+            at least the steps taken (``gradient_solver``: ``max_steps - 1``) stores every step:
+            no recomputation, memory ∝ ``checkpoints``.
         memory_speed: for exponential methods, which integrate the impact memory as the offset
             u = m − δ̇: reference speed of those rows, m/s, controlled with absolute tolerance
             ``atol + rtol * memory_speed``. u is ~0 in free flight and its error is an error in
@@ -73,6 +80,7 @@ class SolverConfig(eqx.Module):
     newton_rtol: float = eqx.field(static=True, default=1e-3)
     newton_atol: float = eqx.field(static=True, default=1e-6)
     memory_speed: float = eqx.field(static=True, default=1.0)
+    checkpoints: int | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.method not in METHODS:
@@ -86,6 +94,13 @@ class SolverConfig(eqx.Module):
         if not (isinstance(self.max_steps, int) and self.max_steps > 0):
             raise ValueError(
                 f"SolverConfig.max_steps must be a positive integer, got {self.max_steps!r}."
+            )
+        if self.checkpoints is not None and not (
+            isinstance(self.checkpoints, int) and 0 < self.checkpoints <= self.max_steps
+        ):
+            raise ValueError(
+                f"SolverConfig.checkpoints must be None or an integer in [1, max_steps={self.max_steps}], "
+                f"got {self.checkpoints!r}."
             )
 
     @property
@@ -103,6 +118,12 @@ class SolverConfig(eqx.Module):
     def replace(self, **changes) -> "SolverConfig":
         """Copy with some settings changed."""
         return dataclasses.replace(self, **changes)
+
+    def reverse_adjoint(self) -> diffrax.RecursiveCheckpointAdjoint:
+        """The reverse-mode adjoint for these settings, to pass as ``simulate(..., adjoint=...)``
+        under ``jax.grad``/``jax.vjp``/``jax.jacrev``:
+        ``diffrax.RecursiveCheckpointAdjoint(checkpoints=self.checkpoints)``."""
+        return diffrax.RecursiveCheckpointAdjoint(checkpoints=self.checkpoints)
 
     def make_solver(
         self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None
@@ -188,6 +209,78 @@ def recommended_solver(mechanism) -> SolverConfig:
     """
     stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
     return PRESETS["imex" if stiff else "fast"]
+
+
+GRADIENT_MAX_STEPS = 200_000
+"""Step budget of ``gradient_solver``: one revolution at 5000 rpm took 15 300 steps (one joint,
+Coulomb-type friction) to about 115 000 (three joints, LuGre) at its settings. Reverse mode stores
+every step (``checkpoints = max_steps - 1``); for longer solves raise both with
+``config.replace(max_steps=n, checkpoints=n - 1)``."""
+
+
+def gradient_solver(mechanism) -> SolverConfig:
+    """Settings for solves that are differentiated (``jax.grad``, ``jax.jacfwd``), chosen by
+    measurement so that gradients match converged central differences.
+
+    Pass ``adjoint=config.reverse_adjoint()`` to ``simulate`` for reverse mode (it stores every
+    step, see below) and ``adjoint="forward"`` for ``jax.jacfwd``/``jax.jvp``.
+
+    - No friction states (ideal joints, Coulomb-type friction): ``lawson-tsit5`` (``tsit5`` for
+      ideal joints) at rtol 1e-12, atol 1e-15.
+    - Friction with internal states (LuGre): ``tsit5`` at rtol 1e-12, atol 1e-15, steps of at
+      most 1 µs.
+
+    Measured on the benchmark slider–crank at 5000 rpm, loss = squared residuals of slider x, slider
+    acceleration and crank torque at 120 instants of one revolution (12 ms) against the ideal-joint
+    responses, derivatives with respect to clearance, restitution, friction coefficient and rod mass
+    (``python benchmarks/gradient_accuracy.py``; table in docs/differentiation.md, "Settings for
+    gradients"):
+
+    - Tolerance. diffrax differentiates the steps taken, not the step-size choices: the gradient is
+      that of the discrete solve, and its error is not controlled. One joint (B), modified Coulomb:
+      over the revolution Lawson–Tsit5 was within 0.33 % (reverse) and 0.14 % (forward) of converged
+      central differences at rtol 1e-12, off by up to 2.1 % at 1e-11; Tsit5 at 1e-10 by up to 12 %.
+      One joint, LuGre: Tsit5 (steps ≤ 1 µs) within 0.34 % at rtol 1e-12; at 1e-11 reverse mode was
+      within 0.5 % but forward mode, on another step sequence, off by up to 14 %. The error of the
+      discrete gradient changes erratically with the step sequence, so the margin is wanted.
+    - Method. Taking the impact-memory decay exactly, Lawson–Tsit5 needs 15 300 steps per
+      revolution at rtol 1e-12 where Tsit5 needs 48 700. With LuGre the stiff bristle state, not the
+      memory, sets the step: Tsit5 took 31 300 steps (one joint); KenCarp5 at rtol 1e-11 took
+      37 800 and was off by up to 2.5 %.
+    - Reverse mode stores every step (``checkpoints = max_steps - 1``). With fewer checkpoints the
+      backward pass recomputes runs of steps from the stored ones, in differently compiled code; on
+      these solves the recomputed steps need not retrace the forward pass (a rounding-level change
+      alters the contact sequence, docs/model.md §5b) and the gradient then depended on the count:
+      one joint, Coulomb, loss over 4 ms, rtol 1e-10, d loss / d clearance −1.17e5 with 30, 100 or
+      3000 checkpoints, −4.5e5, +1.7e7 and +8.5e5 with 300, 632 (diffrax's default here) and 1000,
+      −1.19e5 with every step stored; central differences −1.18e5 (commit bf1f54c;
+      ``gradient_accuracy.py --checkpoints`` repeats the comparison).
+    - Step bound with LuGre. Reverse mode through Tsit5 gave NaN gradients with LuGre friction over
+      3 ms (finite over 0.5 ms), while forward mode and finite differences stayed finite; presumably
+      a trial step far outside Tsit5's stability region (bristle and memory decay rates ~1e6 1/s),
+      rejected in the forward pass, still contributes 0 · inf to the backward pass. Steps of at
+      most 1 µs (2 µs too) removed the NaN; they cost 7 % more steps.
+
+    Costs (``python benchmarks/gradient_cost.py``): see docs/differentiation.md; reverse mode costs
+    more than 5 primal solves here (the backward step is much dearer than the forward one).
+
+    Over a revolution the three-joint mechanisms are chaotic: converged central differences of the
+    loss exist only over the first 4–5 ms (docs/differentiation.md), though forward and reverse mode
+    agree with each other over the whole revolution. Fit over windows (multiple shooting) there.
+
+    Args:
+        mechanism: the ``Mechanism`` to differentiate (its friction laws decide).
+
+    Returns:
+        A ``SolverConfig`` (static: build it once and reuse it).
+    """
+    stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
+    budget = dict(max_steps=GRADIENT_MAX_STEPS, checkpoints=GRADIENT_MAX_STEPS - 1)
+    if stiff:
+        return SolverConfig(method="tsit5", rtol=1e-12, atol=1e-15, dtmax=1e-6, **budget)
+    # lawson-tsit5 needs impact-memory rows; ideal joints have none
+    method = "lawson-tsit5" if mechanism.clearance_joints else "tsit5"
+    return SolverConfig(method=method, rtol=1e-12, atol=1e-15, **budget)
 
 
 def solver_config(solver: "str | SolverConfig", mechanism=None) -> SolverConfig:
