@@ -58,6 +58,11 @@ from ._parameter_space import (
 DEFAULT_HORIZONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
 """Fractions of the record fitted in turn (module doc, "growing windows")."""
 
+INFORMATIVE_SPREAD = 1.0
+"""The scan moves on to the next window while its losses differ by less than this over the scanned
+points (a window before the first impact says nothing about a clearance): the refinement starts
+with the first window whose loss tells the points apart."""
+
 LOSS_GROWTH = 2.0
 """A window whose fitted loss exceeds this multiple of the best loss of the shorter windows is
 beyond the horizon the model can follow (chaotic impact sequence, model error): the fit keeps
@@ -317,9 +322,10 @@ def identify(
     total = (math.ceil(count / SCAN_CHUNK) if count > 1 else 0) + len(ends) * max_iterations
     bar = progress_bar(progress, total, "fit")
 
-    # 1. global scan over the first window
+    # 1. global scan over the first window that tells the scanned points apart
     u = np.array([q.to_unconstrained(q.initial) for q in specs], dtype=float)
     scan = {}
+    first = 0  # the window the refinement starts with
     if count > 1:
         points = scan_values(specs, count)
         us = np.stack(
@@ -328,24 +334,32 @@ def identify(
                 for row in points
             ]
         )
-        losses = np.full(len(us), np.inf)
-        for start in range(0, len(us), SCAN_CHUNK):
-            chunk = us[start : start + SCAN_CHUNK]
-            padded = np.concatenate([chunk, np.repeat(chunk[-1:], SCAN_CHUNK - len(chunk), axis=0)])
-            r = np.asarray(
-                _scan_residuals(
-                    *static,
-                    jnp.asarray(padded),
-                    t_start,
-                    jnp.asarray(ends[0]),
-                    ts,
-                    y,
-                    inv_sigma,
-                    masks[0],
+        for first in range(len(ends)):
+            losses = np.full(len(us), np.inf)
+            for start in range(0, len(us), SCAN_CHUNK):
+                chunk = us[start : start + SCAN_CHUNK]
+                padded = np.concatenate(
+                    [chunk, np.repeat(chunk[-1:], SCAN_CHUNK - len(chunk), axis=0)]
                 )
-            )
-            losses[start : start + len(chunk)] = np.sum(r**2, axis=1)[: len(chunk)] / counts[0]
-            bar.update(1)
+                r = np.asarray(
+                    _scan_residuals(
+                        *static,
+                        jnp.asarray(padded),
+                        t_start,
+                        jnp.asarray(ends[first]),
+                        ts,
+                        y,
+                        inv_sigma,
+                        masks[first],
+                    )
+                )
+                losses[start : start + len(chunk)] = (
+                    np.sum(r**2, axis=1)[: len(chunk)] / counts[first]
+                )
+                bar.update(1)
+            finite = losses[np.isfinite(losses)]
+            if finite.size and np.max(finite) - np.min(finite) > INFORMATIVE_SPREAD:
+                break
         losses = np.where(np.isfinite(losses), losses, np.inf)
         best = int(np.argmin(losses))
         if not np.isfinite(losses[best]):
@@ -358,7 +372,7 @@ def identify(
         record(
             {
                 "stage": "scan",
-                "horizon": ends[0],
+                "horizon": ends[first],
                 "iteration": 0,
                 "loss": float(losses[best]),
                 "values": _values(specs, u),
@@ -367,10 +381,13 @@ def identify(
 
     # 2. Levenberg–Marquardt over growing windows, while the model follows the record
     iterations, converged, status = 0, False, ""
-    used = 0  # index of the last window whose fit was kept
     kept: list[np.ndarray] = []  # the estimate (u) after each kept window
     best_loss = math.inf
+    used = first
     for k, (end, mask, n) in enumerate(zip(ends, masks, counts, strict=True)):
+        if k < first:
+            bar.update(max_iterations)
+            continue  # before the first window that carries information on the parameters
         stage = f"window {k + 1}/{len(ends)}"
         u_new, its, conv, stat, loss = _levenberg_marquardt(
             lambda u, end=end, mask=mask: _residuals_and_jacobian(
@@ -395,7 +412,7 @@ def identify(
         )
         iterations += its
         bar.update(max_iterations - its)
-        if k > 0 and not loss <= LOSS_GROWTH * best_loss:
+        if k > first and not loss <= LOSS_GROWTH * best_loss:
             status = (
                 f"{stat}; the model does not follow the record beyond {ends[used]:.6g} s (loss "
                 f"{loss:.3g} over {end:.6g} s against {best_loss:.3g}): estimate from the first "
@@ -420,7 +437,12 @@ def identify(
     jac = jac_u / dtheta[None, :]
     dof = max(counts[used] - p, 1.0)
     scale = max(1.0, float(np.sum(r**2)) / dof)
-    covariance = scale * np.linalg.pinv(jac.T @ jac)
+    information = jac.T @ jac
+    if np.linalg.matrix_rank(jac) < p:  # a parameter (or combination) the data do not constrain
+        covariance = np.full((p, p), np.inf)
+        status += "; not identifiable from the data fitted: the covariance is infinite"
+    else:
+        covariance = scale * np.linalg.inv(information)
     values = _values(specs, u)
     # window-to-window change of the estimate: model or numerical error that the residuals'
     # covariance cannot see (correlated residuals) shows as a drift of the estimate with the span
