@@ -160,11 +160,12 @@ def _has_forward_mode_tracer(tree) -> bool:
     return False
 
 
-def make_adjoint(adjoint, traced_tree=None) -> diffrax.AbstractAdjoint:
+def make_adjoint(adjoint, traced_tree=None, config=None) -> diffrax.AbstractAdjoint:
     """The diffrax adjoint for ``simulate``'s ``adjoint`` argument.
 
-    ``"reverse"``: ``diffrax.RecursiveCheckpointAdjoint`` (reverse mode: ``jax.grad``, ``jax.vjp``,
-    ``jax.jacrev``; memory grows as the log of the number of steps). ``"forward"``:
+    ``"reverse"``: ``diffrax.RecursiveCheckpointAdjoint`` with ``config.checkpoints`` checkpoints
+    (``SolverConfig.reverse_adjoint``; reverse mode: ``jax.grad``, ``jax.vjp``, ``jax.jacrev``;
+    ``None`` is diffrax's default, ``gradient_solver`` stores every step). ``"forward"``:
     ``diffrax.ForwardMode`` (``jax.jvp``, ``jax.jacfwd``; cheaper than reverse mode for a few
     parameters, no reverse mode). ``"auto"``: forward mode if ``traced_tree`` carries
     ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode otherwise.
@@ -174,6 +175,8 @@ def make_adjoint(adjoint, traced_tree=None) -> diffrax.AbstractAdjoint:
     if adjoint == "auto":
         adjoint = "forward" if _has_forward_mode_tracer(traced_tree) else "reverse"
     if adjoint == "reverse":
+        if config is not None:
+            return config.reverse_adjoint()
         return diffrax.RecursiveCheckpointAdjoint()
     if adjoint == "forward":
         return diffrax.ForwardMode()
@@ -356,7 +359,8 @@ def simulate(
             ``"accurate"``), a method name or a ``SolverConfig``.
         y0: initial state (from ``assemble``) to skip assembly.
         adjoint: how derivatives go through the solve: ``"reverse"`` (``jax.grad``, ``jax.vjp``,
-            ``jax.jacrev``; recursive checkpointing), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``:
+            ``jax.jacrev``; recursive checkpointing with the solver's ``checkpoints``: every step for
+            ``gradient_solver``), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``:
             cheaper for a few parameters, no reverse mode), ``"auto"`` (default: forward mode when
             the inputs carry ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode otherwise; a forward
             transformation applied outside a ``jax.jit`` of your function cannot be seen, pass
@@ -407,7 +411,7 @@ def simulate(
             y0,
             jnp.asarray(start, dtype=float),
             config,
-            make_adjoint(adjoint, (mechanism, y0)),
+            make_adjoint(adjoint, (mechanism, y0), config),
             progress,
             extremes,
         )
