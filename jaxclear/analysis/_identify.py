@@ -27,7 +27,9 @@ C = s² (JᵀJ)⁻¹ + diag(Δθ²), with J = ∂r/∂θ over the windows used, 
 Δθ the change of the estimate between the last two windows kept. The factor s² widens the interval
 when the model does not reproduce the data to its noise level (model error or underestimated
 noise); it never narrows it. Residuals of a model error are correlated in time, which s² cannot
-see: the estimate then drifts as the window grows, and Δθ² adds that drift.
+see: the estimate then drifts as the window grows, and Δθ² adds that drift. A parameter the fitted
+data do not constrain (a Jacobian of lower rank than the number of parameters) gets an infinite
+covariance, and ``status`` says so.
 """
 
 import dataclasses
