@@ -295,8 +295,6 @@ def body_columns(traj) -> list[Column]:
     return cols
 
 
-
-
 def _select(traj, keep: np.ndarray):
     """The trajectory at the saved instants where ``keep`` (boolean, (N,)) is true."""
     import jax
