@@ -40,10 +40,13 @@ def lugre_state():
 
 
 def one_step(term, solver, y, mech, h):
+    # h as an array: equinox's filter_jit (inside diffeqsolve) keeps Python floats static, so a float
+    # step would compile each solver once per step size
+    h = jnp.asarray(h)
     sol = diffrax.diffeqsolve(
         term,
         solver,
-        0.0,
+        jnp.asarray(0.0),
         h,
         h,
         y,
