@@ -15,6 +15,11 @@ T1 = 2 * PERIOD
 STEP_BUDGET = 20
 """Too few steps for two revolutions at 5000 rpm (they take 56), enough for 100 rpm (2)."""
 STARVED = jaxclear.SolverConfig(method="tsit5", max_steps=STEP_BUDGET)
+GRID = 11
+"""Output points of every solve here. With ``STARVED`` the checks made inside the compiled solve and
+the solver-failure tests share one compilation (one more for the batch), and a bad input stops after
+``STEP_BUDGET`` steps instead of being integrated over the whole horizon; the input checks are
+raised before the failed solve, so the starved budget does not hide them."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -131,17 +136,18 @@ def y0():
 def test_negative_mass_inside_jit(y0):
     """A mass made negative after construction, with ``y0`` given (so no eager parameter check):
     the compiled solve's own check fires."""
-    bad = eqx.tree_at(lambda m: m.bodies[0].mass, slider_crank(), jnp.asarray(-0.3))
+    # a strongly typed float64 leaf like the constructor's: a weakly typed one would recompile
+    bad = eqx.tree_at(lambda m: m.bodies[0].mass, slider_crank(), jnp.asarray(-0.3, dtype=float))
     with pytest.raises(
         jaxclear.ModelError, match="mass and inertia of every body must be positive"
     ):
-        jaxclear.simulate(bad, T1, num_points=NUM_POINTS, solver="fast", y0=y0)
+        jaxclear.simulate(bad, T1, num_points=GRID, solver=STARVED, y0=y0)
 
 
 def test_non_finite_initial_state(y0):
     with pytest.raises(jaxclear.ModelError, match="initial state is not finite"):
         jaxclear.simulate(
-            slider_crank(), T1, num_points=NUM_POINTS, solver="fast", y0=y0.at[0].set(jnp.nan)
+            slider_crank(), T1, num_points=GRID, solver=STARVED, y0=y0.at[0].set(jnp.nan)
         )
 
 
@@ -150,23 +156,26 @@ def test_wrong_initial_state_shape(y0):
         jaxclear.simulate(slider_crank(), T1, num_points=NUM_POINTS, solver="fast", y0=y0[:5])
 
 
+def _batch(**varied):
+    """Batch parameters of the two batch tests: both vary the same leaves (rpm, rod length, crank
+    mass, initial angle), so their vmapped solves share one compilation."""
+    params = {"rpm": [RPM] * 2, "rod_length": [0.12] * 2, "crank_mass": [0.3] * 2}
+    params["initial_angle"] = [0.0] * 2
+    return {k: jnp.array(v, dtype=float) for k, v in (params | varied).items()}
+
+
+def _build(p):
+    return slider_crank(**p)
+
+
 def test_batch_member_that_cannot_be_assembled():
     """Inside ``simulate_batch`` there is no eager assembly: a member whose rod cannot reach the
     guide (l < r at a 90° start) trips the compiled assembly check."""
-    params = {"rod_length": jnp.array([0.12, 0.03]), "crank_mass": jnp.array([0.3, 0.3])}
-
-    def build(p):
-        return slider_crank(
-            rpm=RPM,
-            rod_length=p["rod_length"],
-            crank_mass=p["crank_mass"],
-            initial_angle=jnp.pi / 2,
-        )
-
+    params = _batch(rod_length=[0.12, 0.03], initial_angle=[jnp.pi / 2] * 2)
     with pytest.raises(
         jaxclear.AssemblyError, match=r"mechanism cannot be assembled.*batch members \[1\] of 2"
     ):
-        jaxclear.simulate_batch(build, params, T1, num_points=NUM_POINTS, solver="fast")
+        jaxclear.simulate_batch(_build, params, T1, num_points=GRID, solver=STARVED)
 
 
 # --------------------------------------------------------------------------------------------
@@ -177,7 +186,7 @@ def test_simulation_error_gives_time_and_state():
         jaxclear.SimulationError,
         match=r"simulation failed at t = .* after 20 steps.*raise max_steps \(now 20\)",
     ) as info:
-        jaxclear.simulate(slider_crank(rpm=RPM), T1, num_points=11, solver=STARVED)
+        jaxclear.simulate(slider_crank(rpm=RPM), T1, num_points=GRID, solver=STARVED)
     err = info.value
     print(f"SimulationError: {err}")
     assert 0.0 < err.t < T1
@@ -189,19 +198,17 @@ def test_simulation_error_gives_time_and_state():
     # the state is the mechanism's at err.t: the crank angle is ω t there
     assert q[2] == pytest.approx(RPM * 2 * np.pi / 60 * err.t, rel=1e-5)
     # throw=False returns the failed trajectory instead
-    traj = jaxclear.simulate(slider_crank(rpm=RPM), T1, num_points=11, solver=STARVED, throw=False)
+    traj = jaxclear.simulate(
+        slider_crank(rpm=RPM), T1, num_points=GRID, solver=STARVED, throw=False
+    )
     assert not bool(traj.succeeded)
     assert float(traj.t_final) == pytest.approx(err.t, rel=1e-12)
 
 
 def test_batched_failure_is_reported_per_member():
-    params = {"rpm": jnp.array([100.0, 6000.0]), "crank_mass": jnp.array([0.3, 0.3])}
-
-    def build(p):
-        return slider_crank(rpm=p["rpm"], crank_mass=p["crank_mass"])
-
+    params = _batch(rpm=[100.0, 6000.0])
     traj = jaxclear.simulate_batch(
-        build, params, T1, num_points=11, solver=STARVED
+        _build, params, T1, num_points=GRID, solver=STARVED
     )  # does not raise
     stats = traj.stats()
     print(f"batched stats: {stats}")
