@@ -389,7 +389,7 @@ def simulate(
     config = solver_config(solver, mechanism)
     traced = _is_traced((mechanism, y0, t0, t1, ts, statistics_start))
     if _is_concrete_number(t0) and _is_concrete_number(t1):
-        t0, t1 = float(t0), float(t1)
+        t0, t1 = float(np.asarray(t0)), float(np.asarray(t1))
         if not np.isfinite(t0):
             raise ValueError(f"t0 must be finite, got {t0}.")
         if not (np.isfinite(t1) and t1 > t0):
@@ -400,7 +400,7 @@ def simulate(
         if y0.shape != (mechanism.state_size,):
             raise ValueError(f"y0 must have shape ({mechanism.state_size},), got {y0.shape}.")
     elif not traced:
-        y0 = assemble(mechanism, t0)
+        y0 = assemble(mechanism, float(np.asarray(t0)))
     start = t0 if statistics_start is None else statistics_start
     try:
         traj = _simulate_core(

@@ -336,6 +336,7 @@ def identify(
                 for row in points
             ]
         )
+        losses = np.full(len(us), np.inf)
         for first in range(len(ends)):
             losses = np.full(len(us), np.inf)
             for start in range(0, len(us), SCAN_CHUNK):
