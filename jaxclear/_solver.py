@@ -250,19 +250,24 @@ def gradient_solver(mechanism) -> SolverConfig:
     - Reverse mode stores every step (``checkpoints = max_steps - 1``). With fewer checkpoints the
       backward pass recomputes runs of steps from the stored ones, in differently compiled code; on
       these solves the recomputed steps need not retrace the forward pass (a rounding-level change
-      alters the contact sequence, docs/model.md §5b) and the gradient then depended on the count:
-      one joint, Coulomb, loss over 4 ms, rtol 1e-10, d loss / d clearance −1.17e5 with 30, 100 or
-      3000 checkpoints, −4.5e5, +1.7e7 and +8.5e5 with 300, 632 (diffrax's default here) and 1000,
-      −1.19e5 with every step stored; central differences −1.18e5 (commit bf1f54c;
-      ``gradient_accuracy.py --checkpoints`` repeats the comparison).
+      alters the step and contact sequence, docs/model.md §5b) and the gradient then depended on
+      the count: one joint, Coulomb, loss over the first 4 ms, these settings, d loss / d clearance
+      by forward mode −122 189, by reverse mode −122 139 with every step stored and −122 190, +1.2e6,
+      −9.0e7, +5.7e5, −40 454 and −2.5e7 with 30, 300, 632, 1000, 3000 checkpoints and diffrax's
+      default (632 here); converged central differences −1.22e5
+      (``python benchmarks/gradient_accuracy.py --cases B-coulomb --windows 4 --checkpoints
+      30,300,632,1000,3000,default,199999``).
     - Step bound with LuGre. Reverse mode through Tsit5 gave NaN gradients with LuGre friction over
       3 ms (finite over 0.5 ms), while forward mode and finite differences stayed finite; presumably
       a trial step far outside Tsit5's stability region (bristle and memory decay rates ~1e6 1/s),
       rejected in the forward pass, still contributes 0 · inf to the backward pass. Steps of at
       most 1 µs (2 µs too) removed the NaN; they cost 7 % more steps.
 
-    Costs (``python benchmarks/gradient_cost.py``): see docs/differentiation.md; reverse mode costs
-    more than 5 primal solves here (the backward step is much dearer than the forward one).
+    Cost over one revolution relative to a primal solve at these settings (``python
+    benchmarks/gradient_cost.py``, loaded 2-core machine): reverse mode 12–13.5× (one joint,
+    Coulomb, Lawson–Tsit5) and 4.3–5.1× (three joints, LuGre, Tsit5) for 1 to 16 parameters;
+    forward mode 5.5×, 10.4×, 33× (one joint) and 2.9×, 5.3×, 5.8× (three joints) for 1, 4, 16;
+    gradient compilation 16–50 s.
 
     Over a revolution the three-joint mechanisms are chaotic: converged central differences of the
     loss exist only over the first 4–5 ms (docs/differentiation.md), though forward and reverse mode
