@@ -421,24 +421,24 @@ rounding-level differences, amplified by the contact (measured 4e-9 relative).""
 CLEARANCES = np.array([4.5e-4, 5.5e-4])
 
 
-def test_one_joint_vmap_equals_loop(one_joint_derivatives, one_joint_y0):
-    d = one_joint_derivatives
-    batch = {**d["p"], "clearance": jnp.asarray(CLEARANCES)}
-    axes = {k: (0 if k == "clearance" else None) for k in d["p"]}
-    mapped = jax.vmap(lambda q: _response(q, one_joint_y0), in_axes=(axes,))(batch)
-    for k, c in enumerate(CLEARANCES):
-        single = d["f"]({**d["p"], "clearance": jnp.asarray(c)})
-        np.testing.assert_allclose(np.asarray(mapped[k]), np.asarray(single), rtol=SAME_RTOL)
-
-
 def test_one_joint_jit_vmap_grad_equals_loop_of_grad(one_joint_derivatives):
-    """``jit(vmap(jacrev))`` over clearances equals a loop of the jitted ``jacrev``."""
+    """``jit(vmap(jacrev))`` over clearances equals a loop of the jitted ``jacrev``, and its values
+    (``has_aux``) a loop of the jitted solve: vmap of the values and its composition with reverse
+    mode in one compilation. (vmap without jit: ``test_batch_matches_loop`` here and
+    tests/test_clearance_joint.py's ``test_batch_equals_loop``.)"""
     d = one_joint_derivatives
     batch = {**d["p"], "clearance": jnp.asarray(CLEARANCES)}
     axes = {k: (0 if k == "clearance" else None) for k in d["p"]}
-    mapped = jax.jit(jax.vmap(jax.jacrev(d["response"]), in_axes=(axes,)))(batch)
+
+    def with_value(q):
+        value = d["response"](q)
+        return value, value
+
+    mapped, values = jax.jit(jax.vmap(jax.jacrev(with_value, has_aux=True), in_axes=(axes,)))(batch)
     for k, c in enumerate(CLEARANCES):
-        single = d["jacrev"]({**d["p"], "clearance": jnp.asarray(c)})
+        p = {**d["p"], "clearance": jnp.asarray(c)}
+        np.testing.assert_allclose(np.asarray(values[k]), np.asarray(d["f"](p)), rtol=SAME_RTOL)
+        single = d["jacrev"](p)
         member = jax.tree_util.tree_map(lambda x, k=k: x[k], mapped)
         print(
             f"clearance {c}: d/dc vmapped {np.asarray(member['clearance'])}, loop {np.asarray(single['clearance'])}"
