@@ -7,13 +7,28 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
+from jaxclear.cli._common import FAST_COMPILE_FLAG
+
 NOTEBOOKS = sorted((pathlib.Path(__file__).parent.parent / "notebooks").glob("*.ipynb"))
 TIMEOUT = 600  # s per cell: compiles dominate
 
 
+def _kernel_environment(quick):
+    """Environment the kernel inherits: quick mode, and in quick mode XLA's faster CPU compilation
+    (the ``jaxclear`` command's default, ``[solver] fast_compile``): the quick runs are dominated by
+    compilation, and they check that the notebooks run, not their figures."""
+    env = {"JAXCLEAR_QUICK": "1" if quick else "0"}
+    flags = os.environ.get("XLA_FLAGS", "")
+    if quick and "xla_cpu_use_fusion_emitters" not in flags:
+        env["XLA_FLAGS"] = f"{flags} {FAST_COMPILE_FLAG}".strip()
+    return env
+
+
 def _run(path, quick):
     nb = nbformat.read(path, as_version=4)
-    os.environ["JAXCLEAR_QUICK"] = "1" if quick else "0"
+    env = _kernel_environment(quick)
+    saved = {name: os.environ.get(name) for name in env}
+    os.environ.update(env)
     try:
         NotebookClient(
             nb,
@@ -22,7 +37,11 @@ def _run(path, quick):
             resources={"metadata": {"path": str(path.parent)}},
         ).execute()
     finally:
-        os.environ.pop("JAXCLEAR_QUICK", None)
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
     return nb
 
 
