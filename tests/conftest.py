@@ -2,3 +2,42 @@ import jax
 
 jax.config.update("jax_enable_x64", True)
 jax.config.update("jax_numpy_rank_promotion", "raise")
+
+LONGEST_FIRST = (
+    "test_transforms.py",
+    "test_fast_paths.py",
+    "test_notebooks.py",
+    "test_identify.py",
+    "test_gradient_settings.py",
+    "test_optimize.py",
+    "test_cli.py",
+    "test_clearance_joint.py",
+    "test_force_elements.py",
+    "test_statistics.py",
+    "test_lawson.py",
+    "test_signals.py",
+    "test_imex_affine.py",
+    "test_startup.py",
+    "test_errors.py",
+    "test_reference_agreement.py",
+    "test_constraints.py",
+    "test_contact_laws.py",
+    "test_four_bar.py",
+    "test_plot.py",
+)
+"""Test files by time taken (mostly compilation), longest first; the others follow in collection
+order. ``--dist loadfile`` hands whole files to the two workers in collection order, each worker
+taking the next file as it finishes one: longest first keeps one long file from starting last
+while the other worker idles. (pytest-xdist's own order, most tests first, started the few-test,
+compile-heavy files last.) Update the list when a file's time changes much
+(``pytest --durations=0``)."""
+
+
+def pytest_configure(config):
+    if hasattr(config.option, "loadscopereorder"):  # pytest-xdist present
+        config.option.loadscopereorder = False  # keep the order set below
+
+
+def pytest_collection_modifyitems(config, items):
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: files stay whole
