@@ -157,7 +157,13 @@ GRAD_REL_TOL = (
 # discrete map wiggle on that scale, and its exact gradient was off by 20 %.)
 
 
+@pytest.mark.slow  # its own reverse-mode compilation; see the docstring
 def test_gradient_wrt_clearance_matches_finite_difference():
+    """Reverse mode through a tight frictionless solve vs central differences. The default suite
+    checks the same property in tests/test_transforms.py
+    (``test_one_joint_reverse_forward_and_central_differences_agree[clearance]``: reverse and forward
+    mode vs converged central differences of d ecc_x/dc and d x_slider/dc through the first impact,
+    to 1e-3) and tests/test_gradient_settings.py (reverse mode at the gradient settings, 1 ms)."""
     ts = jnp.linspace(0.0, GRAD_HORIZON, 8)
 
     def final_eccentricity(clearance):
