@@ -1,6 +1,6 @@
 """The speed-ups must not change the model: batched clearance joints, the Gauss–Jordan Schur solve,
-and the IMEX stage solvers (``DiagonalNewton``, ``AffineKenCarp``) with their contract on the stiff
-rates."""
+the IMEX stage solvers (``DiagonalNewton``, ``AffineKenCarp``) with their contract on the stiff
+rates, and Lawson–Tsit5's offset form of the impact memory (its toy problems: tests/test_lawson.py)."""
 
 import jax
 import jax.numpy as jnp
@@ -14,16 +14,23 @@ from jaxclear.contact import Hybrid, LankaraniNikravesh
 from jaxclear.dynamics import _clearance as clearance
 from jaxclear.dynamics._batched import groups
 from jaxclear.dynamics._equations import (
+    memory_offset_shift,
     solve_accelerations,
     spd_solve,
     stiff_vector_field,
     vector_field,
 )
-from jaxclear.friction import FRICTION_LAWS, LuGre, friction_law_from_name
+from jaxclear.friction import FRICTION_LAWS, LuGre, ModifiedCoulomb, friction_law_from_name
 from jaxclear.mechanisms import slider_crank
 
 RNG = np.random.default_rng(7)
 Z_DENSE_TOLERANCE = 3e-10  # m, LuGre z through KenCarp5's dense output (see its test)
+REFERENCE = jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14)
+"""The converged reference of the solves below. Solves of one mechanism with the same solver
+settings and number of output points share one compilation (end times are traced), so the
+reference runs of each mechanism use one point count (``LUGRE_POINTS``, ``ONE_JOINT_POINTS``)."""
+LUGRE_POINTS = 51
+ONE_JOINT_POINTS = 61
 
 
 def _perturbed_state(mech, scale=2e-4):
@@ -175,13 +182,11 @@ def lugre_runs():
         contact_law=LankaraniNikravesh(restitution=0.9),
         friction_law=LuGre(),
     )
-    ts = np.linspace(0.0, 0.5e-3, 51)
+    ts = np.linspace(0.0, 0.5e-3, LUGRE_POINTS)
     imex = jaxclear.simulate(
         mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="kencarp5", rtol=1e-9, atol=1e-12)
     )
-    ref = jaxclear.simulate(
-        mech, 0.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14)
-    )
+    ref = jaxclear.simulate(mech, 0.5e-3, ts=ts, solver=REFERENCE)
     return imex, ref
 
 
@@ -219,31 +224,41 @@ def test_auto_solver_choice():
         jaxclear._solver.solver_config("auto")
 
 
+@pytest.fixture(scope="module")
+def one_joint():
+    """The one-joint benchmark case: B, Lankarani–Nikravesh, modified Coulomb μ = 0.01."""
+    return slider_crank(
+        clearance_joints="B",
+        clearance=5e-4,
+        contact_law=LankaraniNikravesh(restitution=0.9),
+        friction_law=ModifiedCoulomb(0.01),
+    )
+
+
+FIRST_CONTACTS = 1.5e-3  # s: free flight, first impacts, sliding
+LAWSON = jaxclear.SolverConfig(method="lawson-tsit5", rtol=1e-7, atol=1e-10)
+
+
+@pytest.fixture(scope="module")
+def first_contacts_reference(one_joint):
+    ts = np.linspace(0.0, FIRST_CONTACTS, ONE_JOINT_POINTS)
+    return jaxclear.simulate(one_joint, FIRST_CONTACTS, ts=ts, solver=REFERENCE)
+
+
 @pytest.mark.parametrize("solver", ["auto", "lawson-tsit5"])
-def test_default_solver_follows_the_converged_solution_through_the_first_contacts(solver):
+def test_default_solver_follows_the_converged_solution_through_the_first_contacts(
+    solver, one_joint, first_contacts_reference
+):
     """The defaults (``auto`` = Tsit5 with the PI controller, rtol 1e-6), and Lawson–Tsit5 at rtol
     1e-7, on the one-joint benchmark case (B, Lankarani–Nikravesh, modified Coulomb μ = 0.01): the
     first 1.5 ms (free flight, first impacts, sliding) stay within 0.2 µm of Dopri8 at rtol 1e-11.
     ``benchmarks/first_contact_accuracy.py --spread`` (rtol × 0.8 … 1.25, atol = rtol/1000)
     measured Tsit5 at 1e-6 0.042–0.13 µm and Lawson–Tsit5 at 1e-7 0.0019–0.017 µm (at 1e-6 it
     was up to 0.44 µm: it takes the accuracy the tolerance allows)."""
-    from jaxclear.friction import ModifiedCoulomb
-
-    mech = slider_crank(
-        clearance_joints="B",
-        clearance=5e-4,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=ModifiedCoulomb(0.01),
-    )
-    ts = np.linspace(0.0, 1.5e-3, 61)
-    config = (
-        solver if solver == "auto" else jaxclear.SolverConfig(method=solver, rtol=1e-7, atol=1e-10)
-    )
-    fast = jaxclear.simulate(mech, 1.5e-3, ts=ts, solver=config)
-    ref = jaxclear.simulate(
-        mech, 1.5e-3, ts=ts, solver=jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14)
-    )
-    b, r = fast.clearance["B"], ref.clearance["B"]
+    ts = np.linspace(0.0, FIRST_CONTACTS, ONE_JOINT_POINTS)
+    config = solver if solver == "auto" else LAWSON
+    fast = jaxclear.simulate(one_joint, FIRST_CONTACTS, ts=ts, solver=config)
+    b, r = fast.clearance["B"], first_contacts_reference.clearance["B"]
     assert float(np.max(np.asarray(r["normal_force"]))) > 1e3  # impacts happened
     dist = np.hypot(
         np.asarray(b["ecc_x"]) - np.asarray(r["ecc_x"]),
@@ -253,10 +268,50 @@ def test_default_solver_follows_the_converged_solution_through_the_first_contact
     assert np.max(dist) < 2e-7
 
 
+def test_memory_forms_give_the_same_trajectory(one_joint):
+    """The offset form u = m − δ̇ that Lawson–Tsit5 integrates is the same model as the absolute form
+    (dynamics/_impact_memory.py): over the first impacts (0.6 ms) at tight tolerance the orbits and
+    the latched impact velocities agree, and states convert back and forth exactly. (The absolute
+    run reuses the compiled reference solve above.)"""
+    mech = one_joint
+    ts = np.linspace(0.0, 6e-4, ONE_JOINT_POINTS)
+    absolute = jaxclear.simulate(mech, 6e-4, ts=ts, solver=REFERENCE)
+    offset = jaxclear.simulate(mech.with_memory_offset(), 6e-4, ts=ts, solver=REFERENCE)
+    assert (
+        float(np.max(np.asarray(absolute.clearance["B"]["normal_force"]))) > 1e3
+    )  # impacts happened
+    for key, atol in (("ecc_x", 1e-10), ("ecc_y", 1e-10), ("impact_velocity", 1e-6)):
+        np.testing.assert_allclose(
+            np.asarray(offset.clearance["B"][key]),
+            np.asarray(absolute.clearance["B"][key]),
+            rtol=0,
+            atol=atol,
+        )
+    y = absolute.y_final
+    u = y - memory_offset_shift(mech, y)
+    assert float(u[-1]) != float(y[-1])
+    np.testing.assert_allclose(u + memory_offset_shift(mech, u), y, rtol=0, atol=1e-15)
+
+
+def test_lawson_run_returns_the_absolute_memory(one_joint):
+    """Lawson–Tsit5 solves the offset form inside; the trajectory holds m (= δ̇ in free flight).
+    (The settings of the first-contact test above: one compilation.)"""
+    ts = np.linspace(0.0, 1e-4, ONE_JOINT_POINTS)  # free flight from the centred start
+    tr = jaxclear.simulate(one_joint, 1e-4, ts=ts, solver=LAWSON)
+    b = tr.clearance["B"]
+    assert float(np.max(np.abs(np.asarray(b["penetration_rate"])))) > 1.0  # m/s: it moves
+    np.testing.assert_allclose(
+        np.asarray(b["impact_velocity"]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9
+    )
+    np.testing.assert_allclose(
+        np.asarray(tr.internal_state[:, 0]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9
+    )
+
+
 def test_gradient_through_the_imex_solver():
     """d(ecc_x at 0.25 ms)/dc with LuGre through KenCarp5 + DiagonalNewton (what ``auto`` picks): the
-    implicit-function gradient of the stage solves agrees with converged central differences of a
-    tight Tsit5 solution (measured 0.88285 vs 0.88600, 0.36 %; the IMEX solution's own difference
+    implicit-function gradient of the stage solves agrees with converged central differences of the
+    Dopri8 reference (measured 0.88285 vs 0.88600, 0.36 %; the IMEX solution's own difference
     quotient is noisier because its step sequence changes with c)."""
     ts = np.linspace(0.0, 2.5e-4, 11)
 
@@ -270,18 +325,20 @@ def test_gradient_through_the_imex_solver():
 
     y0 = jaxclear.assemble(build(5e-4))
 
-    def ecc(c, solver):
+    def ecc(c, solver, ts=ts):
         return jaxclear.simulate(build(c), 2.5e-4, ts=ts, y0=y0, solver=solver).clearance["B"][
             "ecc_x"
         ][-1]
 
     grad = float(jax.grad(lambda c: ecc(c, "imex"))(5e-4))
-    # converged central differences of a tight Tsit5 solution: two steps a decade apart agree
-    # (measured 0.886000 and 0.885998); a difference quotient at the default rtol 1e-6 moved by
-    # 1.4 % when the assembled start state changed by 3e-6 m/s
-    tight = jaxclear.SolverConfig(method="tsit5", rtol=1e-10, atol=1e-13, max_steps=1_000_000)
+    # converged central differences of the reference (the compiled solve of lugre_runs): two steps
+    # a decade apart agree (measured 0.8859981 at both; a tight Tsit5 solution gave 0.886000 and
+    # 0.885998); a difference quotient at the default rtol 1e-6 moved by 1.4 % when the assembled
+    # start state changed by 3e-6 m/s
+    grid = np.linspace(0.0, 2.5e-4, LUGRE_POINTS)
     fds = [
-        (float(ecc(5e-4 + h, tight)) - float(ecc(5e-4 - h, tight))) / (2 * h) for h in (1e-7, 1e-8)
+        (float(ecc(5e-4 + h, REFERENCE, grid)) - float(ecc(5e-4 - h, REFERENCE, grid))) / (2 * h)
+        for h in (1e-7, 1e-8)
     ]
     assert abs(fds[0] - fds[1]) < 1e-4 * abs(fds[0])
     fd = fds[1]

@@ -1,6 +1,7 @@
 """``LawsonTsit5`` (jaxclear/_lawson.py): Tsit5 on plain rows, exact integrating factor on decay rows.
 
-Toy problems with known solutions: the solver is checked apart from the mechanism model.
+Toy problems with known solutions: the solver is checked apart from the mechanism model (on the
+mechanism, with the offset form of the impact memory: tests/test_fast_paths.py).
 """
 
 import diffrax
@@ -24,16 +25,20 @@ def decay_rate(t, y, args):
 
 
 def solve(term, solver, y0, args, t1, ts, rtol=1e-8, max_steps=100_000):
+    # t1 and the tolerances as arrays: diffeqsolve's filter_jit keeps Python floats static, so each
+    # new value would compile again
     return diffrax.diffeqsolve(
         term,
         solver,
         0.0,
-        t1,
+        jnp.asarray(t1, dtype=float),
         None,
         y0,
         args=args,
         saveat=diffrax.SaveAt(ts=ts),
-        stepsize_controller=diffrax.PIDController(rtol=rtol, atol=rtol * 1e-3),
+        stepsize_controller=diffrax.PIDController(
+            rtol=jnp.asarray(rtol, dtype=float), atol=jnp.asarray(rtol * 1e-3, dtype=float)
+        ),
         max_steps=max_steps,
     )
 
@@ -140,64 +145,6 @@ def test_vmapped_gradient_is_finite_when_members_finish_apart():
     grads = jax.vmap(jax.grad(x_end, argnums=1))(jnp.array([1e3, 1e3]), jnp.array([1.0, 2.0]))
     # x = cos t, so d x(t1) / d t1 = -sin t1
     np.testing.assert_allclose(grads, -np.sin([1.0, 2.0]), rtol=1e-6)
-
-
-@pytest.fixture(scope="module")
-def one_joint():
-    import jaxclear
-    from jaxclear.contact import LankaraniNikravesh
-    from jaxclear.friction import ModifiedCoulomb
-    from jaxclear.mechanisms import slider_crank
-
-    return jaxclear, slider_crank(
-        clearance_joints="B",
-        clearance=5e-4,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=ModifiedCoulomb(0.01),
-    )
-
-
-def test_memory_forms_give_the_same_trajectory(one_joint):
-    """The offset form u = m − δ̇ that Lawson–Tsit5 integrates is the same model as the absolute form
-    (dynamics/_impact_memory.py): over the first impacts (0.6 ms) at tight tolerance the orbits and
-    the latched impact velocities agree, and states convert back and forth exactly."""
-    jaxclear, mech = one_joint
-    from jaxclear.dynamics._equations import memory_offset_shift
-
-    ts = np.linspace(0.0, 6e-4, 31)
-    tight = jaxclear.SolverConfig(method="dopri8", rtol=1e-11, atol=1e-14, max_steps=1_000_000)
-    absolute = jaxclear.simulate(mech, 6e-4, ts=ts, solver=tight)
-    offset = jaxclear.simulate(mech.with_memory_offset(), 6e-4, ts=ts, solver=tight)
-    assert (
-        float(np.max(np.asarray(absolute.clearance["B"]["normal_force"]))) > 1e3
-    )  # impacts happened
-    for key, atol in (("ecc_x", 1e-10), ("ecc_y", 1e-10), ("impact_velocity", 1e-6)):
-        np.testing.assert_allclose(
-            np.asarray(offset.clearance["B"][key]),
-            np.asarray(absolute.clearance["B"][key]),
-            rtol=0,
-            atol=atol,
-        )
-    y = absolute.y_final
-    u = y - memory_offset_shift(mech, y)
-    assert float(u[-1]) != float(y[-1])
-    np.testing.assert_allclose(u + memory_offset_shift(mech, u), y, rtol=0, atol=1e-15)
-
-
-def test_lawson_run_returns_the_absolute_memory(one_joint):
-    """Lawson–Tsit5 solves the offset form inside; the trajectory holds m (= δ̇ in free flight)."""
-    jaxclear, mech = one_joint
-    ts = np.linspace(0.0, 1e-4, 11)  # free flight from the centred start
-    tr = jaxclear.simulate(
-        mech, 1e-4, ts=ts, solver=jaxclear.SolverConfig(method="lawson-tsit5", rtol=1e-8)
-    )
-    b = tr.clearance["B"]
-    np.testing.assert_allclose(
-        np.asarray(b["impact_velocity"]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9
-    )
-    np.testing.assert_allclose(
-        np.asarray(tr.internal_state[:, 0]), np.asarray(b["penetration_rate"]), rtol=0, atol=1e-9
-    )
 
 
 def test_configuration_errors_name_the_fix():
