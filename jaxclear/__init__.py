@@ -28,7 +28,10 @@ from ._startup import wall_start as wall_start  # noqa: E402
 from ._trajectory import Trajectory as Trajectory  # noqa: E402
 from .analysis import FitParameter as FitParameter  # noqa: E402
 from .analysis import identify as identify  # noqa: E402
+from .analysis import montecarlo as montecarlo  # noqa: E402
 from .analysis import optimize as optimize  # noqa: E402
+from .analysis import run_ensemble as run_ensemble  # noqa: E402
+from .analysis import sweep as sweep  # noqa: E402
 from .model import AbstractDriver as AbstractDriver  # noqa: E402
 from .model import AbstractForceElement as AbstractForceElement  # noqa: E402
 from .model import AbstractJoint as AbstractJoint  # noqa: E402

@@ -1,12 +1,27 @@
-"""Post-processing: energy, contact modes, run statistics; identification and design optimisation."""
+"""Post-processing: energy, contact modes, run statistics; ensembles (Monte Carlo over tolerances,
+sweeps); identification and design optimisation."""
 
+from ._distributions import AbstractDistribution as AbstractDistribution
+from ._distributions import Fixed as Fixed
+from ._distributions import IsoFit as IsoFit
+from ._distributions import LogNormal as LogNormal
+from ._distributions import Normal as Normal
+from ._distributions import Uniform as Uniform
+from ._distributions import distribution_from_spec as distribution_from_spec
 from ._energy import drive_power as drive_power
 from ._energy import drive_work as drive_work
 from ._energy import kinetic_energy as kinetic_energy
 from ._energy import potential_energy as potential_energy
+from ._ensemble import EnsembleError as EnsembleError
+from ._ensemble import EnsembleResult as EnsembleResult
+from ._ensemble import run_ensemble as run_ensemble
 from ._identify import Estimate as Estimate
 from ._identify import IdentificationResult as IdentificationResult
 from ._identify import identify as identify
+from ._iso286 import fit_clearance as fit_clearance
+from ._iso286 import fit_zones as fit_zones
+from ._iso286 import standard_tolerance as standard_tolerance
+from ._iso286 import tolerance_zone as tolerance_zone
 from ._modes import CONTINUOUS as CONTINUOUS
 from ._modes import FREE as FREE
 from ._modes import IMPACT as IMPACT
@@ -14,6 +29,10 @@ from ._modes import MODE_NAMES as MODE_NAMES
 from ._modes import combination_shares as combination_shares
 from ._modes import contact_modes as contact_modes
 from ._modes import trajectory_modes as trajectory_modes
+from ._montecarlo import draw as draw
+from ._montecarlo import montecarlo as montecarlo
+from ._montecarlo import sweep as sweep
+from ._montecarlo import sweep_values as sweep_values
 from ._optimize import OptimizationResult as OptimizationResult
 from ._optimize import optimize as optimize
 from ._optimize import start_offsets as start_offsets
