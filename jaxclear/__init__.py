@@ -24,6 +24,7 @@ from ._solver import PRESETS as PRESETS  # noqa: E402
 from ._solver import SolverConfig as SolverConfig  # noqa: E402
 from ._solver import gradient_solver as gradient_solver  # noqa: E402
 from ._solver import recommended_solver as recommended_solver  # noqa: E402
+from ._startup import ideal_mechanism as ideal_mechanism  # noqa: E402
 from ._startup import wall_start as wall_start  # noqa: E402
 from ._trajectory import Trajectory as Trajectory  # noqa: E402
 from .analysis import FitParameter as FitParameter  # noqa: E402
