@@ -159,6 +159,10 @@ def _window_mean(t, x, start):
     return jnp.sum(seg * 0.5 * (x[1:] + x[:-1])) / jnp.sum(seg)
 
 
+def _member_of_row(v, mechanism, names, config, ideal_config, deviation, ts, t0, t1, start):
+    return _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, start)
+
+
 def _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, start):
     """One member: its statistics, penetrations on the grid (for contact modes), outcome."""
     m = with_parameters(mechanism, {n: v[k] for k, n in enumerate(names)})
@@ -192,19 +196,65 @@ def _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, st
 
 
 @eqx.filter_jit
-def _chunk(mechanism, names, config, ideal_config, deviation, values, ts, t0, t1, start, devices):
+def _vmap_chunk(fn, args, values, devices):
+    """``fn(v, *args)`` for every row ``v`` of ``values``: vmapped, and split over ``devices`` by
+    ``jax.shard_map`` (each device loops over its own share) when there are several."""
+
     def batch(vals):
-        return jax.vmap(
-            lambda v: _member(
-                mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, start
-            )
-        )(vals)
+        return jax.vmap(lambda v: fn(v, *args))(vals)
 
     if devices is None:
         return batch(values)
     mesh = jax.sharding.Mesh(np.asarray(devices), ("members",))
     spec = jax.sharding.PartitionSpec("members")
     return jax.shard_map(batch, mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)(values)
+
+
+def chunk_size_for(chunk_size: int, devices) -> int:
+    """``chunk_size`` rounded up to a multiple of the number of devices."""
+    per = len(devices) if devices else 1
+    return -(-int(chunk_size) // per) * per
+
+
+def map_members(
+    fn: Callable[..., Any],
+    args: tuple,
+    values,
+    *,
+    chunk_size: int = DEFAULT_CHUNK,
+    devices: Sequence[Any] | None = None,
+    on_chunk: Callable[[int, int], Any] | None = None,
+):
+    """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
+
+    The engine's core, shared by ``run_ensemble`` and identification's global scan: chunks of
+    ``chunk_size`` rows (the last one padded by repeating its last row, so that every chunk has
+    one shape and one compilation), each one vmapped and split over the local devices.
+
+    Args:
+        fn: a module-level function ``fn(v, *args)`` of one member's row ``v`` (a JAX function:
+            it is traced once per chunk shape).
+        args: the other arguments (pytrees; arrays are traced, the rest static).
+        values: (N, p) rows.
+        chunk_size: rows per vectorised call (rounded up to a multiple of the devices).
+        devices: devices to split each chunk over (default all local devices).
+        on_chunk: ``on_chunk(start, stop)`` after rows ``start:stop`` are done.
+
+    Returns:
+        ``fn``'s outputs as NumPy arrays with a leading axis of N.
+    """
+    values = np.asarray(values, dtype=float)
+    devs = _devices(devices)
+    chunk = chunk_size_for(chunk_size, devs)
+    outputs = []
+    for start in range(0, len(values), chunk):
+        part = values[start : start + chunk]
+        padded = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
+        out = jax.device_get(_vmap_chunk(fn, args, jnp.asarray(padded), devs))
+        outputs.append(jax.tree_util.tree_map(lambda x, k=len(part): np.asarray(x)[:k], out))
+        if on_chunk is not None:
+            on_chunk(start, start + len(part))
+    return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs), *outputs)
 
 
 # --- ordering by expected cost --------------------------------------------------------------------
@@ -424,8 +474,7 @@ def run_ensemble(
                 f"deviation signal {s!r} is unknown; use some of {', '.join(available)}."
             )
     devs = _devices(devices)
-    per = len(devs) if devs else 1
-    chunk = -(-chunk_size // per) * per
+    chunk = chunk_size_for(chunk_size, devs)
     ts = np.linspace(t0, t1, num_points)
     period = None
     if mechanism.driver is not None:
@@ -499,20 +548,23 @@ def run_ensemble(
             batch = np.repeat(base[None, :], chunk, axis=0)
             batch[: len(members)] = vals[members]
             started = time.perf_counter()
-            stats, pen, outcome = _chunk(
-                mechanism,
-                names,
-                config,
-                ideal_config,
-                deviation,
-                jnp.asarray(batch),
-                jnp.asarray(ts),
-                jnp.asarray(t0, dtype=float),
-                jnp.asarray(t1, dtype=float),
-                jnp.asarray(start, dtype=float),
-                devs,
+            stats, pen, outcome = map_members(
+                _member_of_row,
+                (
+                    mechanism,
+                    names,
+                    config,
+                    ideal_config,
+                    deviation,
+                    jnp.asarray(ts),
+                    jnp.asarray(t0, dtype=float),
+                    jnp.asarray(t1, dtype=float),
+                    jnp.asarray(start, dtype=float),
+                ),
+                batch,
+                chunk_size=chunk,
+                devices=devices,
             )
-            stats, pen, outcome = jax.device_get((stats, pen, outcome))
             wall = (time.perf_counter() - started) / len(members)
             for row, i in enumerate(members):
                 _record(result, i, row, stats, pen, outcome, ts, start, period, continuous_fraction)

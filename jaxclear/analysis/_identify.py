@@ -49,6 +49,7 @@ from .._signals import signal_names, signals
 from .._simulate import simulate
 from .._solver import SolverConfig, solver_config
 from ..model import Mechanism, with_parameters
+from ._ensemble import map_members
 from ._parameter_space import (
     FitParameter,
     ParameterSpace,
@@ -201,13 +202,11 @@ def _residuals_and_jacobian(mechanism, params, names, solver, u, t0, t1, ts, dat
     return r, jac
 
 
-@eqx.filter_jit
-def _scan_residuals(mechanism, params, names, solver, us, t0, t1, ts, data, inv_sigma, mask):
-    return jax.vmap(
-        lambda u: _residuals(
-            mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask, "reverse"
-        )
-    )(us)
+def _scan_member(u, mechanism, params, names, solver, t0, t1, ts, data, inv_sigma, mask):
+    """Residuals of one scanned point: a member of the ensemble engine's ``map_members``."""
+    return _residuals(
+        mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask, "reverse"
+    )
 
 
 def check_identification(
@@ -339,27 +338,22 @@ def identify(
         losses = np.full(len(us), np.inf)
         for first in range(len(ends)):
             losses = np.full(len(us), np.inf)
-            for start in range(0, len(us), SCAN_CHUNK):
-                chunk = us[start : start + SCAN_CHUNK]
-                padded = np.concatenate(
-                    [chunk, np.repeat(chunk[-1:], SCAN_CHUNK - len(chunk), axis=0)]
-                )
-                r = np.asarray(
-                    _scan_residuals(
-                        *static,
-                        jnp.asarray(padded),
-                        t_start,
-                        jnp.asarray(ends[first]),
-                        ts,
-                        y,
-                        inv_sigma,
-                        masks[first],
-                    )
-                )
-                losses[start : start + len(chunk)] = (
-                    np.sum(r**2, axis=1)[: len(chunk)] / counts[first]
-                )
-                bar.update(1)
+            r = map_members(
+                _scan_member,
+                (
+                    *static,
+                    t_start,
+                    jnp.asarray(ends[first]),
+                    ts,
+                    y,
+                    inv_sigma,
+                    masks[first],
+                ),
+                us,
+                chunk_size=SCAN_CHUNK,
+                on_chunk=lambda start, stop: bar.update(1),
+            )
+            losses = np.sum(r**2, axis=1) / counts[first]
             finite = losses[np.isfinite(losses)]
             if finite.size and np.max(finite) - np.min(finite) > INFORMATIVE_SPREAD:
                 break
