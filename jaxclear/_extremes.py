@@ -18,6 +18,11 @@ takes 29 steps per revolution (12° of crank angle), and the input-torque minimu
 (tests/test_statistics.py).
 
 The input-torque mean square is integrated by the trapezoidal rule over the same steps.
+
+Contact events (optional, ``max_events > 0``): each clearance joint's contact onsets and ends,
+located where the penetration δ changes sign between two consecutive samples (step midpoints and
+ends) by linear interpolation of δ, are written into a fixed-size buffer. Contact modes and their
+time shares then come from these events, not from the saved grid (``jaxclear.analysis.contact_events``).
 """
 
 from collections.abc import Callable
@@ -67,6 +72,12 @@ class Extremes(eqx.Module):
         constraint_violation_max: peak max |Φ|, m or rad.
         times, recent: the last two accepted step ends and the observations there (for the
             trapezoidal rule and the peak interpolation).
+        contact_onset: {clearance joint: onset time of the contact in progress, s; nan in free
+            flight}.
+        events: {clearance joint: (max_events, 2) onset and end times of finished contacts, s,
+            in order; unused rows nan}.
+        event_count: {clearance joint: contacts finished so far (more than ``max_events`` means
+            the buffer overflowed: the later ones are counted, not stored)}.
     """
 
     start: Float[Array, ""]
@@ -82,6 +93,9 @@ class Extremes(eqx.Module):
     constraint_violation_max: Float[Array, ""]
     times: Float[Array, " 2"]
     recent: tuple[Observation, Observation]
+    contact_onset: dict[str, Float[Array, ""]]
+    events: dict[str, Float[Array, "k 2"]]
+    event_count: dict[str, Array]
 
     @property
     def input_torque_rms(self) -> Float[Array, ""]:
@@ -89,8 +103,9 @@ class Extremes(eqx.Module):
         return jnp.sqrt(self.input_torque_square_integral / self.duration)
 
     @classmethod
-    def first(cls, start, t, obs: Observation) -> "Extremes":
-        """Extremes after the initial instant ``t`` (counted if t ≥ start)."""
+    def first(cls, start, t, obs: Observation, max_events: int = 0) -> "Extremes":
+        """Extremes after the initial instant ``t`` (counted if t ≥ start); room for
+        ``max_events`` contact events per clearance joint."""
         inside = t >= start
         neg = lambda x: jnp.where(inside, x, -jnp.inf)  # noqa: E731
         pos = lambda x: jnp.where(inside, x, jnp.inf)  # noqa: E731
@@ -109,7 +124,33 @@ class Extremes(eqx.Module):
             constraint_violation_max=neg(obs.constraint_violation),
             times=jnp.stack([t, t]),
             recent=(obs, obs),
+            contact_onset={k: jnp.where(v > 0, t, jnp.nan) for k, v in obs.penetration.items()},
+            events={k: jnp.full((max_events, 2), jnp.nan) for k in obs.penetration},
+            event_count={k: jnp.zeros((), dtype=jnp.int32) for k in obs.penetration},
         )
+
+    def _contact_events(self, t, obs: Observation):
+        """Onsets and ends of contact between the last sample (at ``times[1]``) and ``t``."""
+        t_last = self.times[1]
+        onsets, events, counts = {}, {}, {}
+        for k, buffer in self.events.items():
+            before, after = self.recent[1].penetration[k], obs.penetration[k]
+            crossing = (before > 0) != (after > 0)
+            denominator = jnp.where(crossing, before - after, 1.0)
+            at = t_last + (t - t_last) * jnp.where(crossing, before / denominator, 1.0)
+            starts = (before <= 0) & (after > 0)
+            ends = (before > 0) & (after <= 0)
+            onset = self.contact_onset[k]
+            count = self.event_count[k]
+            if buffer.shape[0]:
+                row = jnp.minimum(count, buffer.shape[0] - 1)
+                store = ends & (count < buffer.shape[0])
+                new = jnp.where(store, jnp.stack([onset, at]), buffer[row])
+                buffer = jax.lax.dynamic_update_slice(buffer, new[None, :], (row, jnp.zeros_like(row)))
+            events[k] = buffer
+            counts[k] = count + ends.astype(count.dtype)
+            onsets[k] = jnp.where(starts, at, jnp.where(ends, jnp.nan, onset))
+        return onsets, events, counts
 
     def update(self, t, obs: Observation) -> "Extremes":
         """Extremes after a step ending at ``t`` with observation ``obs`` there."""
@@ -145,6 +186,7 @@ class Extremes(eqx.Module):
         def both(fn, old, attribute):
             return fn(fn(old, attribute(new)), attribute(between))
 
+        onsets, events, counts = self._contact_events(t, obs)
         return Extremes(
             start=self.start,
             duration=self.duration + width,
@@ -169,6 +211,9 @@ class Extremes(eqx.Module):
             ),
             times=jnp.stack([t1, t]),
             recent=(last, obs),
+            contact_onset=onsets,
+            events=events,
+            event_count=counts,
         )
 
 
@@ -184,11 +229,13 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
         solver: the wrapped solver (any adaptive diffrax solver).
         observe: ``observe(t, y, args) -> Observation``.
         start: start time of the statistics window, s.
+        max_events: room for this many contact events per clearance joint (0: none recorded).
     """
 
     solver: diffrax.AbstractSolver
     observe: Callable = eqx.field(static=True)
     start: Float[Array, ""]
+    max_events: int = eqx.field(static=True, default=0)
 
     # pyright reads diffrax's AbstractVar/AbstractClassVar attributes of AbstractSolver as class
     # variables; diffrax's own wrapping solvers (HalfSolver) override them with properties too.
@@ -211,7 +258,7 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
 
     def init(self, terms, t0, t1, y0, args):
         return self.solver.init(terms, t0, t1, y0, args), Extremes.first(
-            self.start, t0, self.observe(t0, y0, args)
+            self.start, t0, self.observe(t0, y0, args), self.max_events
         )
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):

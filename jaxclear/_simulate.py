@@ -197,6 +197,7 @@ def _simulate_core(
     adjoint,
     progress: bool,
     track_extremes: bool,
+    max_events: int = 0,
 ):
     assembled_ok = jnp.asarray(True)
     if y0 is None:
@@ -229,7 +230,7 @@ def _simulate_core(
             solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
     sol = diffrax.diffeqsolve(
         terms,
-        ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float))
+        ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float), max_events)
         if track_extremes
         else solver,
         t0,
@@ -328,6 +329,7 @@ def simulate(
     adjoint: "str | diffrax.AbstractAdjoint" = "auto",
     statistics_start: ArrayLike | None = None,
     extremes: bool = True,
+    contact_events: int = 0,
     progress: bool = False,
     throw: bool = True,
 ) -> Trajectory:
@@ -372,6 +374,11 @@ def simulate(
             per step, at its midpoint and end: +25–40 % run time on the benchmark slider–crank,
             benchmarks/README.md). ``False`` skips it (``Trajectory.extremes`` is then ``None``),
             e.g. for fits that need only the trajectory.
+        contact_events: record up to this many contact events (onset and end, located between
+            the solver's samples) per clearance joint in ``Trajectory.extremes`` (needs
+            ``extremes``): contact modes that do not depend on the output grid
+            (``jaxclear.analysis.contact_events``). 0 (default) records none; a new value
+            compiles again.
         progress: show a progress bar (tqdm) over simulated time.
         throw: eager calls only: raise ``SimulationError`` if the solve fails (else inspect
             ``Trajectory.result``).
@@ -414,6 +421,7 @@ def simulate(
             make_adjoint(adjoint, (mechanism, y0), config),
             progress,
             extremes,
+            int(contact_events) if extremes else 0,
         )
     except TypeError as e:  # jax.jvp/jacfwd through the reverse-mode adjoint (a custom_vjp)
         if "custom_vjp" in str(e):

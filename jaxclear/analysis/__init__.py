@@ -27,7 +27,9 @@ from ._modes import FREE as FREE
 from ._modes import IMPACT as IMPACT
 from ._modes import MODE_NAMES as MODE_NAMES
 from ._modes import combination_shares as combination_shares
+from ._modes import contact_events as contact_events
 from ._modes import contact_modes as contact_modes
+from ._modes import event_mode_shares as event_mode_shares
 from ._modes import trajectory_modes as trajectory_modes
 from ._montecarlo import draw as draw
 from ._montecarlo import montecarlo as montecarlo

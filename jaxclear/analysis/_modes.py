@@ -72,3 +72,144 @@ def combination_shares(modes: dict) -> dict:
         " ".join(f"{n}:{MODE_NAMES[int(k)]}" for n, k in zip(names, key)): float(c / total)
         for key, c in zip(keys, counts)
     }
+
+
+# --- contact modes from located events (independent of the output grid) ---------------------------
+
+EVENT_CONTINUOUS_FRACTION = 0.02
+"""Contact lasting at least 2 % of the crank period is continuous contact, shorter contact an
+impact: the rule of the literature (issue 12; Ma & Qian 2017 classify by contact duration)."""
+
+
+def contact_events(
+    traj,
+    *,
+    continuous_fraction: float = EVENT_CONTINUOUS_FRACTION,
+    reference_period: float | None = None,
+    start: float | None = None,
+) -> dict[str, dict[str, np.ndarray]]:
+    """Each clearance joint's contacts, located from the solver's steps (not the output grid).
+
+    Needs a trajectory simulated with ``contact_events=K`` (``jaxclear.simulate``): onsets and
+    ends are where the penetration changes sign between the solver's samples (two per step), by
+    linear interpolation, so a contact shorter than the output interval is still seen.
+
+    Args:
+        traj: an unbatched ``Trajectory`` with recorded contact events.
+        continuous_fraction: contact lasting at least this fraction of the crank period is
+            continuous contact, shorter an impact (default 2 %).
+        reference_period: the period the fraction refers to, s (default the crank period, or the
+            run's duration without a constant-speed driver).
+        start: keep contacts that end after this time, s (default the statistics window's start);
+            a contact in progress at ``start`` is cut there.
+
+    Returns:
+        ``{joint: {"onset", "end", "duration", "mode", "finished"}}``: arrays over the contacts in
+        time order; ``mode`` is ``IMPACT`` (1) or ``CONTINUOUS`` (2); a contact in progress at the
+        end of the run has ``finished`` False and ends at the run's end time (its mode is what its
+        duration so far says).
+
+    Raises:
+        ValueError: no recorded events, a batched trajectory, or an overflowing buffer (the message
+            says which joint and how many contacts there were).
+    """
+    x = traj.extremes
+    if x is None or not x.events or next(iter(x.events.values())).shape[-2] == 0:
+        raise ValueError(
+            "the trajectory has no recorded contact events: simulate with contact_events=K "
+            "(e.g. 4096) and extremes=True."
+        )
+    if np.ndim(traj.t_final) != 0:
+        raise ValueError("contact_events takes one trajectory; index a batched one first.")
+    period = reference_period or crank_period(traj.mechanism) or float(traj.t[-1] - traj.t[0])
+    threshold = continuous_fraction * period
+    t_end = float(traj.t_final)
+    t_start = float(x.start) if start is None else float(start)
+    out = {}
+    for joint, buffer in x.events.items():
+        count = int(x.event_count[joint])
+        room = buffer.shape[0]
+        if count > room:
+            raise ValueError(
+                f"joint {joint} had {count} contacts, more than the {room} recorded: simulate "
+                f"with contact_events >= {count}."
+            )
+        events = np.asarray(buffer)[:count]
+        onset, end = events[:, 0], events[:, 1]
+        finished = np.ones(count, dtype=bool)
+        ongoing = float(x.contact_onset[joint])
+        if np.isfinite(ongoing):
+            onset = np.append(onset, ongoing)
+            end = np.append(end, t_end)
+            finished = np.append(finished, False)
+        duration = end - onset  # the whole contact decides its mode, also when cut at start
+        keep = end > t_start
+        onset = np.maximum(onset[keep], t_start)
+        out[joint] = {
+            "onset": onset,
+            "end": end[keep],
+            "duration": duration[keep],
+            "mode": np.where(duration[keep] >= threshold, CONTINUOUS, IMPACT),
+            "finished": finished[keep],
+        }
+    return out
+
+
+def event_mode_shares(
+    traj,
+    *,
+    continuous_fraction: float = EVENT_CONTINUOUS_FRACTION,
+    reference_period: float | None = None,
+    start: float | None = None,
+) -> dict:
+    """Time shares and counts of the contact modes from located events (``contact_events``).
+
+    Returns:
+        ``{"joints": {joint: {"free", "impact", "continuous": time share; "impacts",
+        "continuous_contacts": counts}}, "combinations": {"O:free A:impact B:continuous": share}}``
+        over [start, end of the run]; the combinations are those of all clearance joints at once
+        (3ⁿ possible), in the mechanism's joint order.
+    """
+    events = contact_events(
+        traj,
+        continuous_fraction=continuous_fraction,
+        reference_period=reference_period,
+        start=start,
+    )
+    x = traj.extremes
+    t_start = float(x.start) if start is None else float(start)
+    t_end = float(traj.t_final)
+    span = t_end - t_start
+    order = [j.name for j in traj.mechanism.clearance_joints if j.name in events]
+    joints = {}
+    cuts = {t_start, t_end}
+    for j in order:
+        e = events[j]
+        share = {
+            MODE_NAMES[m]: float(np.sum((e["end"] - e["onset"])[e["mode"] == m]) / span)
+            for m in (IMPACT, CONTINUOUS)
+        }
+        share["free"] = 1.0 - share["impact"] - share["continuous"]
+        share["impacts"] = int(np.sum(e["mode"] == IMPACT))
+        share["continuous_contacts"] = int(np.sum(e["mode"] == CONTINUOUS))
+        joints[j] = share
+        cuts.update(e["onset"].tolist())
+        cuts.update(e["end"].tolist())
+    points = np.array(sorted(c for c in cuts if t_start <= c <= t_end))
+    mids = 0.5 * (points[1:] + points[:-1])
+    widths = np.diff(points)
+    combos: dict[str, float] = {}
+    if order:
+        labels = []
+        for j in order:
+            e = events[j]
+            label = np.full(mids.shape, FREE)
+            for onset, end, mode in zip(e["onset"], e["end"], e["mode"]):
+                label[(mids > onset) & (mids < end)] = mode
+            labels.append(label)
+        stacked = np.stack(labels, axis=-1)
+        for key in np.unique(stacked, axis=0):
+            inside = np.all(stacked == key, axis=-1)
+            name = " ".join(f"{n}:{MODE_NAMES[int(k)]}" for n, k in zip(order, key))
+            combos[name] = float(np.sum(widths[inside]) / span)
+    return {"joints": joints, "combinations": combos}
