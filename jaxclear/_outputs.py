@@ -399,6 +399,36 @@ def write_csv(path: Path, columns: list[Column]) -> Path:
     return atomic_write(path, write)
 
 
+def write_modes_csv(path: Path, events: dict) -> Path:
+    """modes.csv: one row per contact of each clearance joint (``analysis.contact_events``):
+    joint, onset_s, end_s, duration_s, mode (impact or continuous), finished (0 for a contact
+    still in progress at the end of the run), in time order."""
+    from .analysis import MODE_NAMES
+
+    rows = []
+    for joint, e in events.items():
+        for k in range(len(e["onset"])):
+            rows.append(
+                (
+                    float(e["onset"][k]),
+                    joint,
+                    float(e["end"][k]),
+                    float(e["duration"][k]),
+                    MODE_NAMES[int(e["mode"][k])],
+                    int(bool(e["finished"][k])),
+                )
+            )
+    rows.sort()
+
+    def write(tmp):
+        with open(tmp, "w", newline="", encoding="utf-8") as f:
+            f.write("joint,onset_s,end_s,duration_s,mode,finished\n")
+            for onset, joint, end, duration, mode, finished in rows:
+                f.write(f"{joint},{onset:.9e},{end:.9e},{duration:.9e},{mode},{finished}\n")
+
+    return atomic_write(path, write)
+
+
 def write_npz(path: Path, columns: list[Column]) -> Path:
     """One float64 array per column, same names as the CSV."""
 

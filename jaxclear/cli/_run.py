@@ -4,6 +4,7 @@ import argparse
 import contextlib
 import dataclasses
 import io
+import math
 import os
 import sys
 import tempfile
@@ -28,6 +29,12 @@ from ._settings import (
     solver_help,
     solver_names,
 )
+
+EVENTS_PER_REVOLUTION = 128
+"""Room for contact events per clearance joint and crank revolution (at least 256): the default
+run has 3–7 contacts per joint and revolution; an overflowing buffer is reported in run.json and
+the shares then come from the saved grid."""
+MODES_CSV = "modes.csv"
 
 WARMUP_FRACTION = 1e-3
 """The warm-up (compile) call integrates this fraction of the horizon; see ``timed_simulate``."""
@@ -176,8 +183,20 @@ def _block(traj):
     return traj
 
 
+def event_capacity(settings: Settings) -> int:
+    """Contact events recorded per clearance joint (``simulate(contact_events=...)``)."""
+    revolutions = settings.config["simulation"]["revolutions"]
+    return int(max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions)))
+
+
 def timed_simulate(
-    mechanism, t1: float, num_points: int, solver, progress: bool, statistics_start: float
+    mechanism,
+    t1: float,
+    num_points: int,
+    solver,
+    progress: bool,
+    statistics_start: float,
+    contact_events: int = 0,
 ):
     """Simulate, timing compilation and the run separately.
 
@@ -200,6 +219,7 @@ def timed_simulate(
                 progress=progress,
                 throw=False,
                 statistics_start=0.0,
+                contact_events=contact_events,
             )
         )
     compile_time = time.perf_counter() - start
@@ -213,6 +233,7 @@ def timed_simulate(
             progress=progress,
             throw=False,
             statistics_start=statistics_start,
+            contact_events=contact_events,
         )
     )
     return traj, compile_time, time.perf_counter() - start
@@ -296,7 +317,13 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     say("compiling (one-off) and simulating ...", flush=True)
     try:
         traj, compile_time, run_time = timed_simulate(
-            mechanism, t1, num_points, solver, progress, t_keep
+            mechanism,
+            t1,
+            num_points,
+            solver,
+            progress,
+            t_keep,
+            event_capacity(settings) if names else 0,
         )
     except jaxclear.AssemblyError as e:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
@@ -355,13 +382,15 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             from ..plot import save_standard_plots
 
             files = [p.name for p in save_standard_plots(kept, out_dir, reference=reference)]
-        info.update(
-            statistics=statistics,
-            contact_mode_shares=_outputs.mode_shares(kept, fraction, reference_period=60.0 / rpm)
+        modes = (
+            _contact_modes(traj, kept, fraction, 60.0 / rpm, t_keep)
             if names
-            else {},
-            files=files,
+            else {"contact_mode_shares": {}, "contact_modes": {}}
         )
+        if modes.get("events") is not None:
+            files.append(_outputs.write_modes_csv(out_dir / MODES_CSV, modes.pop("events")).name)
+        modes.pop("events", None)
+        info.update(statistics=statistics, **modes, files=files)
         paths = _outputs.write_results(out_dir, traj, info, fraction)
     except OSError as e:
         raise RunError(
@@ -375,6 +404,33 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     say(f"from revolution {skip:g}: {_figures(kept, statistics)}")
     say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
     return 0
+
+
+def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) -> dict:
+    """run.json's contact-mode entries over the kept window: from the located contact events
+    (``analysis.event_mode_shares``; also returned under ``events`` for modes.csv), or from the
+    saved instants where the event buffer overflowed."""
+    from ..analysis import contact_events, event_mode_shares
+
+    rule = {"continuous_fraction": fraction, "reference_period_s": period}
+    try:
+        events = contact_events(traj, continuous_fraction=fraction, start=t_keep)
+        shares = event_mode_shares(traj, continuous_fraction=fraction, start=t_keep)
+    except ValueError as e:  # the buffer overflowed: shares from the saved instants instead
+        return {
+            "contact_mode_shares": _outputs.mode_shares(kept, fraction, reference_period=period),
+            "contact_modes": {},
+            "contact_mode_source": f"saved instants ({one_line(e)})",
+            "contact_mode_rule": rule,
+            "events": None,
+        }
+    return {
+        "contact_mode_shares": shares["combinations"],
+        "contact_modes": shares["joints"],
+        "contact_mode_source": "contact onsets and ends located from the solver's steps",
+        "contact_mode_rule": rule,
+        "events": events,
+    }
 
 
 def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> int:
