@@ -113,3 +113,33 @@ def test_without_recorded_events_the_error_says_how():
     tr_like = type("T", (), {"extremes": None})()
     with pytest.raises(ValueError, match="contact_events=K"):
         contact_events(tr_like)
+
+
+def test_run_writes_located_modes(tmp_path):
+    """``jaxclear run`` writes modes.csv (one row per contact, from the located events) and
+    run.json shares over the kept window that equal the events' durations."""
+    import csv
+    import json
+
+    from jaxclear import cli
+
+    out = tmp_path / "run"
+    args = "run --clearance-joints B --contact lankarani-nikravesh --friction modified-coulomb"
+    args += " --revolutions 0.25 --skip-revolutions 0.05 --no-plots --quiet --out"
+    assert cli.main([*args.split(), str(out)]) == 0
+    info = json.loads((out / "run.json").read_text())
+    with open(out / "modes.csv", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert rows and {r["mode"] for r in rows} <= {"impact", "continuous"}
+    assert info["contact_mode_source"].startswith("contact onsets and ends located")
+    keep, end = info["kept_window_s"]
+    span = end - keep
+    for mode in ("impact", "continuous"):
+        total = sum(
+            min(float(r["end_s"]), end) - max(float(r["onset_s"]), keep)
+            for r in rows
+            if r["mode"] == mode and float(r["end_s"]) > keep
+        )
+        assert info["contact_modes"]["B"][mode] == pytest.approx(total / span, abs=1e-9)
+    assert sum(info["contact_mode_shares"].values()) == pytest.approx(1.0)
+    assert "modes.csv" in info["files"]
