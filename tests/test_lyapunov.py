@@ -118,6 +118,19 @@ def test_ideal_slider_crank_is_not_chaotic():
     assert bool(result.succeeded)
     bound = -alpha + 2 * np.log(k) / (k * period)  # factor 2: the first interval's alignment
     assert -alpha * 1.01 < float(result.exponent) < min(bound, 0.0)
+    # vmapped over a parameter (the exponent per value of a sweep): equals the single run
+    batch = jax.vmap(
+        lambda rpm: (
+            largest_lyapunov(
+                jaxclear.with_parameters(mech, {"rpm": rpm}),
+                k * period,
+                interval=period,
+                project=False,
+            ).exponent
+        )
+    )(jnp.array([5000.0, 4000.0]))
+    assert float(batch[0]) == pytest.approx(float(result.exponent), rel=1e-6)
+    assert float(batch[1]) < 0.0
 
 
 PROJECTION_ATOL = 1e-12

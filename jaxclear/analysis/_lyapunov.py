@@ -48,9 +48,10 @@ LYAPUNOV_RTOL = 1e-9
 LYAPUNOV_ATOL = 1e-12
 """Tolerances of ``lyapunov_solver``. The tangent is that of the discrete solve, whose error is not
 controlled (only the state's is). One clearance joint (B, hybrid law, LuGre) at 5000 rpm, 4 to 10
-revolutions after 2 (docs/chaos.md, "Tolerance"): KenCarp5 gave λ = +1957/s at rtol 1e-7
-(spurious: one 1 ms window grew a perturbation 1e23-fold where finite differences grew it 24-fold),
-−142/s at 1e-8, −489/s at 1e-9 and −491/s at 1e-10; Tsit5 +2298/s at 1e-6, −405/s at 1e-8."""
+revolutions after 2 (docs/chaos.md, "What λ means with impacts"): KenCarp5 gave λ = +1957/s at
+rtol 1e-7 (spurious), −142/s at 1e-8, −489/s at 1e-9 and −491/s at 1e-10; Tsit5 +2298/s at 1e-6
+(spurious: in one 1 ms window the tangent grew 2.4e23-fold where finite differences of the same
+solves grew 24-fold), −405/s at 1e-8."""
 
 LYAPUNOV_MAX_STEPS = 1_000_000
 """Step budget per interval of ``lyapunov_solver`` (one revolution at 5000 rpm took 22 700 steps
