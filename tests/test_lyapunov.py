@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear.analysis._lyapunov import (
+from jaxclear.analysis import (
     ConstraintProjection,
     ODEFlow,
     flow_lyapunov,

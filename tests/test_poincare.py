@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear.analysis._poincare import (
+from jaxclear.analysis import (
     bifurcation_points,
     distinct_points,
     phase_portrait,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear.analysis._spectrum import WINDOWS, amplitude_spectrum, signal_spectrum
+from jaxclear.analysis import WINDOWS, amplitude_spectrum, signal_spectrum
 
 ON_BIN_RTOL = 1e-10
 """A tone on a bin reads its amplitude exactly (the coherent-gain correction is exact there): only

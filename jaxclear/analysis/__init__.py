@@ -22,6 +22,12 @@ from ._iso286 import fit_clearance as fit_clearance
 from ._iso286 import fit_zones as fit_zones
 from ._iso286 import standard_tolerance as standard_tolerance
 from ._iso286 import tolerance_zone as tolerance_zone
+from ._lyapunov import LyapunovResult as LyapunovResult
+from ._lyapunov import ODEFlow as ODEFlow
+from ._lyapunov import flow_lyapunov as flow_lyapunov
+from ._lyapunov import largest_lyapunov as largest_lyapunov
+from ._lyapunov import lyapunov_solver as lyapunov_solver
+from ._lyapunov import two_trajectory_lyapunov as two_trajectory_lyapunov
 from ._modes import CONTINUOUS as CONTINUOUS
 from ._modes import FREE as FREE
 from ._modes import IMPACT as IMPACT
@@ -39,4 +45,14 @@ from ._optimize import OptimizationResult as OptimizationResult
 from ._optimize import optimize as optimize
 from ._optimize import start_offsets as start_offsets
 from ._parameter_space import FitParameter as FitParameter
+from ._poincare import BifurcationDiagram as BifurcationDiagram
+from ._poincare import bifurcation_points as bifurcation_points
+from ._poincare import default_section_signals as default_section_signals
+from ._poincare import distinct_points as distinct_points
+from ._poincare import phase_portrait as phase_portrait
+from ._poincare import poincare_section as poincare_section
+from ._poincare import section_times as section_times
+from ._spectrum import WINDOWS as WINDOWS
+from ._spectrum import amplitude_spectrum as amplitude_spectrum
+from ._spectrum import signal_spectrum as signal_spectrum
 from ._statistics import statistics as statistics
