@@ -137,8 +137,9 @@ def test_finite_jacobians_at_singular_points(law):
         "touching (δ = 0)": q.at[slider].add(c),
         "penetrating, no slip": q.at[slider].add(c + 1e-6),
     }
+    jacobians = jax.jit(jax.jacfwd(force, argnums=(0, 1, 2)))  # compiled once: cheaper than eager
     for label, qq in cases.items():
-        for jac in jax.jacfwd(force, argnums=(0, 1, 2))(qq, qd * 0.0, state):
+        for jac in jacobians(qq, qd * 0.0, state):
             assert np.all(np.isfinite(np.asarray(jac))), label
 
 
@@ -182,7 +183,15 @@ def test_gradient_wrt_clearance_matches_finite_difference():
 
 
 # --- vmap over clearance equals a loop ---------------------------------------------------------------
+@pytest.mark.slow  # its own vmapped compilation (12 s of CPU); covered in the default suite, see below
 def test_batch_equals_loop(limit_runs):
+    """``simulate_batch`` over clearance and stiffness equals the single runs. In the default suite:
+    members of vmapped solves of the clearance joint at B equal their single runs in
+    tests/test_ensemble.py (``test_members_equal_their_single_runs``,
+    ``test_chunks_spread_over_two_devices_give_the_same_members``), eager ``simulate_batch`` equals a
+    loop in tests/test_transforms.py (``test_batch_matches_loop``) and ``jit(vmap(jacrev))`` of the
+    one-joint slider–crank equals a loop of its jitted solve there
+    (``test_one_joint_jit_vmap_jacrev_equals_loop_and_central_differences``)."""
     clearances = jnp.array([c for c, _ in LIMIT_CASES[:2]])
     stiffness = jnp.array([k * HERTZ_K for _, k in LIMIT_CASES[:2]])
     batch = jaxclear.simulate_batch(
