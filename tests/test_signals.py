@@ -3,10 +3,13 @@
 Two compiled solves for the module: the slider–crank with a clearance joint at B over a tenth of a
 revolution, simulated eagerly in the configuration of tests/test_clearance_joint.py (a worker that
 ran that module reuses its compiled solve); the driven four-bar (ideal joints: body columns,
-revolute forces, torque) simulated under ``jax.value_and_grad``, which gives its trajectory (as
-aux) and the gradient of a signal with respect to a mechanism leaf from one compilation.
+revolute forces, torque) simulated under ``jax.jvp``, which gives its trajectory (as aux) and the
+derivative of a signal with respect to a mechanism leaf from one compilation (forward mode: 7 s of
+CPU against 16 s for ``jax.value_and_grad``; reverse mode through ``signals`` is checked on the
+trajectory's arrays, reverse mode through ``simulate`` by tests/test_transforms.py).
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -56,8 +59,10 @@ def four_bar_run():
         )
         return jnp.sum(jaxclear.signals(traj, ["crank_torque"])["crank_torque"]), traj
 
-    (_, traj), grad = jax.value_and_grad(torque_sum, has_aux=True)(jnp.asarray(0.2))
-    return traj, grad
+    _, derivative, traj = jax.jvp(
+        torque_sum, (jnp.asarray(0.2),), (jnp.asarray(1.0),), has_aux=True
+    )
+    return traj, derivative
 
 
 def _check_equal_to_result_columns(traj):
@@ -95,9 +100,18 @@ def test_four_bar_equals_result_columns(four_bar_run):
     assert {"coupler_ax", "rocker_alpha", "O2_Fx", "O4_Fy", "crank_torque"} <= set(names)
 
 
-def test_grad_of_a_signal_wrt_a_mechanism_leaf(four_bar_run):
-    _, grad = four_bar_run
-    assert np.isfinite(float(grad)) and float(grad) != 0.0
+def test_derivative_of_a_signal_wrt_a_mechanism_leaf(four_bar_run):
+    """Through ``simulate`` (forward mode), and reverse mode through ``signals`` itself: the
+    gradient of the summed crank torque with respect to the trajectory's input torque is one at
+    every saved instant."""
+    traj, derivative = four_bar_run
+    assert np.isfinite(float(derivative)) and float(derivative) != 0.0
+
+    def torque_sum(t):
+        return jnp.sum(jaxclear.signals(t, ["crank_torque"])["crank_torque"])
+
+    grad = eqx.filter_grad(torque_sum)(traj)
+    np.testing.assert_array_equal(np.asarray(grad.input_torque), 1.0)
 
 
 def test_jit_and_vmap(clearance_run):
