@@ -483,3 +483,273 @@ def save_fit_plots(result, out_dir, *, dpi: int = DPI) -> list[Path]:
         _save(plot_fit(result), out_dir, "fit.png", dpi),
         _save(plot_loss(result), out_dir, "loss.png", dpi),
     ]
+
+
+# --- ensembles (Monte Carlo, sweeps) ----------------------------------------------------------------
+
+ENSEMBLE_FAILED_STYLE: dict[str, Any] = dict(
+    marker="x", color="C3", linestyle="none", markersize=6, zorder=4
+)
+SWEEP_LOG_RATIO = 50.0
+"""A sweep over positive values spanning at least this ratio is drawn on a log axis."""
+_LENGTH_FIELDS = ("bearing_radius", "journal_radius", "length", "free_length", "layer_thickness")
+_MODULUS_FIELDS = ("young_modulus", "bearing_young", "journal_young", "foundation_modulus")
+
+
+def statistic_axis(name: str) -> tuple[str, str, float]:
+    """(title, unit, scale) of an ensemble statistic (``EnsembleResult.statistics``) for plots and
+    printed summaries: the value shown is ``scale`` times the SI value, in ``unit``."""
+    if name.endswith("_peak_normal_force"):
+        return f"{name[: -len('_peak_normal_force')]} peak normal force", "kN", 1e-3
+    if name.endswith("_peak_penetration"):
+        return f"{name[: -len('_peak_penetration')]} peak penetration", "µm", 1e6
+    if name.startswith("peak_") and name.endswith("_acceleration"):
+        return f"Peak {name[5 : -len('_acceleration')]} acceleration", "m/s²", 1.0
+    for suffix, what in (("_torque_rms", "RMS"), ("_torque_min", "min"), ("_torque_max", "max")):
+        if name.endswith(suffix):
+            return f"{name[: -len(suffix)].capitalize()} torque {what}", "N·m", 1.0
+    if name == "torque_fluctuation":
+        return "Torque fluctuation, RMS about mean", "N·m", 1.0
+    if name.endswith("_deviation"):  # RMS of (member − ideal-joint mechanism)
+        signal = name[: -len("_deviation")]
+        unit = _signal_unit(signal)
+        return f"{_title(signal)} − ideal, RMS", UNIT_LABELS.get(unit, unit), 1.0
+    for mode in ("free", "impact", "continuous"):
+        if name.endswith(f"_{mode}_share"):
+            return f"{name[: -len(mode) - 7]} {mode}-mode share", "%", 100.0
+    if name == "max_constraint_violation":
+        return "Max constraint violation", "m", 1.0
+    if name in ("statistics_start", "statistics_duration"):
+        return name.replace("_", " ").capitalize(), "s", 1.0
+    return name, "", 1.0
+
+
+def parameter_axis(name: str) -> tuple[str, str, float]:
+    """(title, unit, scale) of a drawn or swept parameter (``jaxclear.parameter_names``)."""
+    owner, _, field = name.rpartition(".")
+    joint = f"{owner} " if owner else ""
+    if field == "clearance":
+        return f"{joint}radial clearance", "µm", 1e6
+    if field in _LENGTH_FIELDS or field.endswith(("_com_x", "_com_y")):
+        return f"{joint}{field.replace('_', ' ')}", "mm", 1e3
+    if field in _MODULUS_FIELDS:
+        return f"{joint}{field.replace('_', ' ')}", "GPa", 1e-9
+    if field.endswith("_mass"):
+        return f"{field[:-5].capitalize()} mass", "kg", 1.0
+    if field.endswith("_inertia"):
+        return f"{field[:-8].capitalize()} moment of inertia", "kg·m²", 1.0
+    if name == "rpm":
+        return "Driver speed", "rpm", 1.0
+    return name, "", 1.0
+
+
+def _label(axis: tuple[str, str, float]) -> str:
+    title, unit, _ = axis
+    return f"{title} ({unit})" if unit else title
+
+
+def _number(value: float) -> str:
+    """4 significant digits, without an exponent up to 10⁷."""
+    return f"{value:.0f}" if 1e4 <= abs(value) < 1e7 else f"{value:.4g}"
+
+
+def _panel(ax, axis: tuple[str, str, float], where: str) -> None:
+    """Statistic's title above the panel, its unit on the ``where`` ("x" or "y") axis."""
+    title, unit, _ = axis
+    ax.set_title(title, fontsize="medium")
+    (ax.set_xlabel if where == "x" else ax.set_ylabel)(unit)
+
+
+def main_ensemble_statistics(result) -> list[str]:
+    """The statistics an ensemble's plots and printed summary show, in this order: each clearance
+    joint's peak normal force, the peak slider acceleration (slider–crank), the input torque's RMS
+    and fluctuation, and the RMS deviations from the ideal mechanism; without any of these (no
+    driver, no clearance joint), the bodies' peak accelerations."""
+    stats = list(result.statistics)
+    names = [n for n in stats if n.endswith("_peak_normal_force")]
+    names += [n for n in ("peak_slider_acceleration",) if n in stats]
+    names += [n for n in stats if n.endswith("_torque_rms")]
+    names += [n for n in ("torque_fluctuation",) if n in stats]
+    names += [n for n in stats if n.endswith("_deviation")]
+    return names or [n for n in stats if n.startswith("peak_")]
+
+
+def _statistic_names(result, names) -> list[str]:
+    names = main_ensemble_statistics(result) if names is None else list(names)
+    unknown = [n for n in names if n not in result.statistics]
+    if unknown:
+        raise ValueError(
+            f"unknown statistic(s) {', '.join(map(repr, unknown))}; this ensemble has: "
+            f"{', '.join(result.statistics)}."
+        )
+    if not names:
+        raise ValueError("no statistics to plot; pass names (see result.statistics).")
+    return names
+
+
+def _grid(count: int, columns: int, width: float = 3.4, height: float = 2.7):
+    """A figure with ``count`` panels on a grid of ``columns`` columns (unused panels removed)."""
+    columns = max(1, min(columns, count))
+    rows = -(-count // columns)
+    fig = Figure(figsize=(width * columns, height * rows + 0.5), dpi=DPI, layout="constrained")
+    axes = fig.subplots(rows, columns, squeeze=False).ravel()
+    for ax in axes[count:]:
+        ax.remove()
+    return fig, list(axes[:count])
+
+
+def _ok_values(result, name: str) -> np.ndarray:
+    x = np.asarray(result.statistics[name], dtype=float)[np.asarray(result.succeeded)]
+    return x[np.isfinite(x)]
+
+
+def _members_text(result) -> str:
+    ok = int(np.sum(result.succeeded))
+    failed = len(result) - ok
+    return f"{ok} of {len(result)} members" + (f", {failed} failed" if failed else "")
+
+
+def plot_ensemble_histograms(result, names: Sequence[str] | None = None) -> Figure:
+    """Histograms of ensemble statistics over the members that succeeded, one panel each, with the
+    median (solid) and the 5 and 95 % percentiles (dashed).
+
+    Args:
+        result: an ``EnsembleResult`` (``jaxclear.montecarlo``, ``jaxclear.run_ensemble``).
+        names: statistics to show (default ``main_ensemble_statistics(result)``).
+
+    Returns:
+        The ``Figure``.
+    """
+    names = _statistic_names(result, names)
+    fig, axes = _grid(len(names), 3)
+    for ax, name in zip(axes, names, strict=True):
+        axis = statistic_axis(name)
+        x = _ok_values(result, name) * axis[2]
+        _panel(ax, axis, "x")
+        ax.set_ylabel("members")
+        ax.grid(True, alpha=0.3)
+        if x.size == 0:
+            ax.text(0.5, 0.5, "no member succeeded", ha="center", transform=ax.transAxes)
+            continue
+        bins = int(np.clip(np.sqrt(x.size), 5, 40))
+        ax.hist(x, bins=bins, color="C0", alpha=0.8, edgecolor="white", linewidth=0.5)
+        p5, p50, p95 = np.percentile(x, [5, 50, 95])
+        ax.axvline(p50, color="C3", linewidth=1.4, label=f"median {_number(p50)} {axis[1]}")
+        ax.axvline(p5, color="0.3", linewidth=1.0, linestyle="--", label="5 and 95 %")
+        ax.axvline(p95, color="0.3", linewidth=1.0, linestyle="--")
+        ax.legend(fontsize="x-small", loc="upper right")
+    fig.suptitle(
+        f"Monte Carlo over {', '.join(result.names)}: {_members_text(result)}", fontsize=10
+    )
+    return fig
+
+
+def _mark_failed(ax, x: np.ndarray, label: str | None) -> None:
+    """Red crosses just above the bottom of the axes at the parameter values of failed members."""
+    if x.size:
+        ax.plot(x, np.full(x.shape, 0.03), transform=ax.get_xaxis_transform(),
+                label=label, **ENSEMBLE_FAILED_STYLE)  # fmt: skip
+
+
+def plot_ensemble_scatter(result, names: Sequence[str] | None = None) -> Figure:
+    """Each statistic against each drawn parameter, one panel per pair (rows: statistics, columns:
+    parameters; with one parameter the panels wrap on a grid). Failed members are red crosses at
+    the bottom of each panel, at their drawn values.
+
+    Args:
+        result: an ``EnsembleResult``.
+        names: statistics to show (default ``main_ensemble_statistics(result)``).
+
+    Returns:
+        The ``Figure``.
+    """
+    names = _statistic_names(result, names)
+    params = list(result.names)
+    pairs = [(s, p) for s in names for p in range(len(params))]
+    fig, axes = _grid(len(pairs), len(params) if len(params) > 1 else 3)
+    ok = np.asarray(result.succeeded)
+    values = np.asarray(result.values, dtype=float)
+    for k, (ax, (name, p)) in enumerate(zip(axes, pairs, strict=True)):
+        stat_axis, par_axis = statistic_axis(name), parameter_axis(params[p])
+        y = np.asarray(result.statistics[name], dtype=float) * stat_axis[2]
+        x = values[:, p] * par_axis[2]
+        ax.plot(x[ok], y[ok], ".", color="C0", markersize=4, alpha=0.7)
+        _mark_failed(ax, x[~ok], "failed" if k == 0 else None)
+        _panel(ax, stat_axis, "y")
+        ax.set_xlabel(_label(par_axis))
+        ax.grid(True, alpha=0.3)
+        if k == 0 and (~ok).any():
+            ax.legend(fontsize="x-small", loc="best")
+    fig.suptitle(
+        f"Monte Carlo: statistics against drawn parameters, {_members_text(result)}", fontsize=10
+    )
+    return fig
+
+
+def plot_sweep(result, names: Sequence[str] | None = None) -> Figure:
+    """Each statistic against the swept parameter (``jaxclear.sweep``), one panel each; values
+    whose member failed are red crosses at the bottom of every panel. Positive values spanning at
+    least ``SWEEP_LOG_RATIO`` are drawn on a log axis.
+
+    Args:
+        result: an ``EnsembleResult`` of one parameter.
+        names: statistics to show (default ``main_ensemble_statistics(result)``).
+
+    Returns:
+        The ``Figure``.
+    """
+    names = _statistic_names(result, names)
+    if len(result.names) != 1:
+        raise ValueError(
+            f"plot_sweep needs an ensemble of one parameter, got {', '.join(result.names)}; use "
+            "plot_ensemble_scatter."
+        )
+    par_axis = parameter_axis(result.names[0])
+    x = np.asarray(result.values, dtype=float)[:, 0] * par_axis[2]
+    order = np.argsort(x, kind="stable")
+    ok = np.asarray(result.succeeded)
+    log = bool(np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min())
+    fig, axes = _grid(len(names), 3)
+    for k, (ax, name) in enumerate(zip(axes, names, strict=True)):
+        stat_axis = statistic_axis(name)
+        if log:
+            ax.set_xscale("log")
+        y = np.asarray(result.statistics[name], dtype=float) * stat_axis[2]
+        keep = order[ok[order]]
+        ax.plot(x[keep], y[keep], "o-", color="C0", markersize=3.5, linewidth=1.2)
+        _mark_failed(ax, x[~ok], "failed" if k == 0 else None)
+        _panel(ax, stat_axis, "y")
+        ax.set_xlabel(_label(par_axis))
+        ax.grid(True, alpha=0.3)
+        if k == 0 and (~ok).any():
+            ax.legend(fontsize="x-small", loc="best")
+    fig.suptitle(
+        f"Sweep of {result.names[0]}: {_members_text(result).replace('members', 'values')}",
+        fontsize=10,
+    )
+    return fig
+
+
+def save_ensemble_plots(result, out_dir, *, kind: str = "montecarlo", dpi: int = DPI) -> list[Path]:
+    """Write an ensemble's PNGs into ``out_dir`` (created if missing).
+
+    Args:
+        result: an ``EnsembleResult``.
+        out_dir: folder for the PNGs.
+        kind: ``"montecarlo"``: histograms.png (``plot_ensemble_histograms``) and scatter.png
+            (``plot_ensemble_scatter``); ``"sweep"``: sweep.png (``plot_sweep``).
+        dpi: resolution.
+
+    Returns:
+        Paths of the files written.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if kind == "montecarlo":
+        return [
+            _save(plot_ensemble_histograms(result), out_dir, "histograms.png", dpi),
+            _save(plot_ensemble_scatter(result), out_dir, "scatter.png", dpi),
+        ]
+    if kind == "sweep":
+        return [_save(plot_sweep(result), out_dir, "sweep.png", dpi)]
+    raise ValueError(f"kind must be 'montecarlo' or 'sweep', got {kind!r}.")
