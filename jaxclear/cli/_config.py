@@ -23,6 +23,9 @@ from ._settings import (
 
 DESCRIPTION_TABLES = ("ground", "bodies", "joints", "driver", "springs", "loads")
 """Top-level tables that describe a custom mechanism (schema in ``_mechanism_config.py``)."""
+ENSEMBLE_TABLES = ("montecarlo",)
+"""Top-level tables read by one subcommand only and ignored by the others: ``[montecarlo]`` holds
+the distributions of ``jaxclear montecarlo`` (checked there, against the mechanism)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -35,12 +38,15 @@ class ConfigFile:
         joint_tables: per-joint clearance tables, ``{joint name: {key: value}}``
             (``[clearance.<joint>]``).
         description: the custom-mechanism tables (``DESCRIPTION_TABLES``) as parsed.
+        montecarlo: the ``[montecarlo]`` table as parsed (distributions by parameter name, or
+            per-joint subtables ``[montecarlo.<joint>]``); empty if absent.
     """
 
     path: str
     values: dict[tuple[str, str], Any]
     joint_tables: dict[str, dict[str, Any]]
     description: dict[str, Any]
+    montecarlo: dict[str, Any] = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,6 +59,7 @@ class Settings:
         joint_tables: per-joint clearance overrides, ``{joint: {key: value}}``.
         description: custom-mechanism tables (empty for the benchmarks).
         config_file: path of the config file, or ``None``.
+        montecarlo: the file's ``[montecarlo]`` table (``jaxclear montecarlo``; others ignore it).
     """
 
     config: dict[str, dict[str, Any]]
@@ -60,6 +67,7 @@ class Settings:
     joint_tables: dict[str, dict[str, Any]]
     description: dict[str, Any]
     config_file: str | None
+    montecarlo: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     @property
     def mechanism(self) -> str:
@@ -99,8 +107,17 @@ def read_config(path: str) -> ConfigFile:
     values: dict[tuple[str, str], Any] = {}
     joint_tables: dict[str, dict[str, Any]] = {}
     description = {}
-    known_sections = ", ".join(f"[{s}]" for s in (*SECTIONS, *DESCRIPTION_TABLES))
+    montecarlo: dict[str, Any] = {}
+    known_sections = ", ".join(f"[{s}]" for s in (*SECTIONS, *DESCRIPTION_TABLES, *ENSEMBLE_TABLES))
     for section, table in data.items():
+        if section in ENSEMBLE_TABLES:
+            if not isinstance(table, dict):
+                raise UsageError(
+                    f"{section!r} in {path!r} must be a table [{section}] of distributions; "
+                    "see docs/ensembles.md"
+                )
+            montecarlo = table
+            continue
         if section in DESCRIPTION_TABLES:
             if not isinstance(table, dict):
                 raise UsageError(
@@ -143,7 +160,7 @@ def read_config(path: str) -> ConfigFile:
             if not type_ok(s, value):
                 raise UsageError(f"{s.label} in {path!r} must be {type_name(s)}, got {value!r}")
             values[(section, key)] = value
-    return ConfigFile(path, values, joint_tables, description)
+    return ConfigFile(path, values, joint_tables, description, montecarlo)
 
 
 def _joint_table(path: str, joint: str, table: dict) -> dict:
@@ -246,4 +263,5 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
         joint_tables=file.joint_tables if file is not None else {},
         description=description,
         config_file=args.config,
+        montecarlo=file.montecarlo if file is not None else {},
     )

@@ -11,12 +11,15 @@ import os
 import sys
 from typing import NoReturn
 
-from . import _fit, _run
+from . import _fit, _montecarlo, _run, _sweep
 from ._common import EXIT_FAILURE, EXIT_USAGE, PROG, RunError, UsageError, one_line
+from ._ensemble_common import ENSEMBLE_FLAGS
 from ._settings import all_flags
 
-SUBCOMMANDS = {"run": _run, "fit": _fit}
+SUBCOMMANDS = {"run": _run, "fit": _fit, "montecarlo": _montecarlo, "sweep": _sweep}
 """Subcommand name -> module with ``add_parser(subparsers, parser_class)`` and ``run(args, argv)``."""
+ENSEMBLE_OPTIONS = ("--samples", "--seed", "--param", "--values", "--range")
+"""Options of ``montecarlo`` and ``sweep`` (for 'did you mean' hints)."""
 
 
 class _Parser(argparse.ArgumentParser):
@@ -30,7 +33,7 @@ def _usage_hint(message: str, argv: list[str]) -> str:
     """Add close matches of mistyped options and where to find help."""
     prefix = "unrecognized arguments: "
     if message.startswith(prefix):
-        flags = [*all_flags(), "--no-progress", "--quiet", "--help"]
+        flags = [*all_flags(), *ENSEMBLE_FLAGS, *ENSEMBLE_OPTIONS, "--help"]
         guesses = []
         for token in message[len(prefix) :].split():
             match = difflib.get_close_matches(token.split("=")[0], flags, n=1, cutoff=0.75)

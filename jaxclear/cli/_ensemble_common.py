@@ -1,0 +1,407 @@
+"""What ``jaxclear montecarlo`` and ``jaxclear sweep`` share: options, devices, the run, the outputs.
+
+Both commands take the mechanism, operating point, horizon and solver from the same config file and
+options as ``jaxclear run`` and hand the members to the ensemble engine
+(``jaxclear.run_ensemble``): vectorised chunks, split over the local devices, finished members
+written after every chunk, resumed when the same command runs again.
+"""
+
+import argparse
+import dataclasses
+import os
+import sys
+import time
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import jaxclear
+
+from .. import _outputs
+from ..analysis._ensemble import (
+    DEFAULT_CHUNK,
+    DEFAULT_CONTINUOUS_FRACTION,
+    MANIFEST,
+    EnsembleError,
+)
+from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
+from ._config import Settings, resolve_settings
+from ._mechanism_config import build_mechanism
+from ._run import grid, kept_start, prepare_output, solver_for
+
+DEVICE_COUNT_FLAG = "--xla_force_host_platform_device_count"
+"""XLA flag that exposes the CPU as this many JAX devices, each running its own share of a chunk."""
+
+ENSEMBLE_FLAGS = ("--chunk-size", "--devices", "--no-progress", "--quiet")
+"""Options every ensemble command adds (for 'did you mean' hints)."""
+
+
+def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add ``--chunk-size``, ``--devices``, ``--no-progress`` and ``--quiet``."""
+    parser.add_argument(
+        "--chunk-size",
+        type=int,
+        default=DEFAULT_CHUNK,
+        metavar="K",
+        help=f"members per vectorised solve (default {DEFAULT_CHUNK}, or the number of members if "
+        "smaller), rounded up to a multiple of the devices; memory grows with it",
+    )
+    parser.add_argument(
+        "--devices",
+        type=int,
+        default=None,
+        metavar="N",
+        help="devices to spread each chunk over (default: every core this process may use, "
+        f"exposed to JAX by XLA_FLAGS={DEVICE_COUNT_FLAG}=N on a CPU; every GPU on a GPU host)",
+    )
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bar (it is shown only on a terminal anyway)",
+    )
+    parser.add_argument(
+        "--quiet", "-q", action="store_true", help="print nothing but errors (no progress bar)"
+    )
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (``os.sched_getaffinity``; ``os.cpu_count`` where absent)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def apply_device_count(devices: int | None) -> str:
+    """Expose the CPU as several JAX devices: add ``DEVICE_COUNT_FLAG`` to ``XLA_FLAGS``.
+
+    Like ``apply_fast_compile``, this must run before JAX's backend starts (the process's first
+    array); called later (``jaxclear.cli.main([...])`` from a process that already computed with
+    JAX) it sets the variable without effect, and the devices that exist are used.
+
+    Args:
+        devices: the number wanted (``--devices``), or ``None`` for every usable core.
+
+    Returns:
+        For the JSON summary: the flag as set, or ``"set by XLA_FLAGS"`` when the user's own
+        ``XLA_FLAGS`` already sets it (then it wins).
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if DEVICE_COUNT_FLAG.lstrip("-") in flags:
+        return "set by XLA_FLAGS"
+    flag = f"{DEVICE_COUNT_FLAG}={devices or usable_cores()}"
+    os.environ["XLA_FLAGS"] = f"{flags} {flag}".strip()
+    return flag
+
+
+@dataclasses.dataclass
+class Prepared:
+    """An ensemble command's checked inputs, before the output folder is made.
+
+    Attributes:
+        settings: the resolved settings (as ``jaxclear run``).
+        mechanism: the nominal mechanism, assembled.
+        t1: end time, s. num_points: output points over [0, t1].
+        statistics_start: start of the kept window (after ``skip_revolutions``), s.
+        solver: the ``SolverConfig``.
+        continuous_fraction: the contact-mode rule: ``[clearance] continuous_fraction`` where
+            the config or an option sets it, else the engine's ``DEFAULT_CONTINUOUS_FRACTION``
+            (2 % of a crank period; ``jaxclear run``'s default is 5 %).
+        fast_compile, device_flag: what was done to ``XLA_FLAGS``.
+    """
+
+    settings: Settings
+    mechanism: Any
+    t1: float
+    num_points: int
+    statistics_start: float
+    solver: Any
+    continuous_fraction: float
+    fast_compile: str
+    device_flag: str
+
+
+def prepare(args: argparse.Namespace, command: str) -> Prepared:
+    """Settings, XLA flags, mechanism, horizon and solver of an ensemble command, checked.
+
+    Raises:
+        UsageError: bad settings, options or mechanism (exit 2); nothing is written yet.
+    """
+    settings = resolve_settings(args)
+    config = settings.config
+    solver_for(settings)  # reject a bad solver name before any work
+    if args.chunk_size < 1:
+        raise UsageError(f"--chunk-size {args.chunk_size}: give 1 or more members per chunk")
+    if args.devices is not None and args.devices < 1:
+        raise UsageError(f"--devices {args.devices}: give 1 or more")
+    fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX starts
+    device_flag = apply_device_count(args.devices)
+    mechanism = build_mechanism(settings)
+    if config["simulation"]["start"] == "wall" and mechanism.clearance_joints:
+        raise UsageError(
+            f"{settings.source('simulation', 'start')}: 'wall' is not supported by {command}: the "
+            "wall start puts each journal on the wall of the nominal clearance, so members with "
+            "another clearance would start off their walls; use --start centred (members start "
+            "centred)"
+        )
+    try:
+        jaxclear.assemble(mechanism)
+    except jaxclear.AssemblyError as e:
+        raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
+    except jaxclear.ModelError as e:
+        raise UsageError(f"invalid mechanism: {one_line(e)}") from None
+    t1, num_points = grid(settings)
+    given = settings.source("clearance", "continuous_fraction") != "default"
+    fraction = config["clearance"]["continuous_fraction"] if given else DEFAULT_CONTINUOUS_FRACTION
+    return Prepared(
+        settings=settings,
+        mechanism=mechanism,
+        t1=t1,
+        num_points=num_points,
+        statistics_start=kept_start(settings),
+        solver=solver_for(settings, mechanism),
+        continuous_fraction=float(fraction),
+        fast_compile=fast_compile,
+        device_flag=device_flag,
+    )
+
+
+def local_devices(requested: int | None) -> list:
+    """The devices to use: the first ``requested`` local devices (all by default)."""
+    import jax
+
+    devices = list(jax.local_devices())
+    return devices[:requested] if requested is not None else devices
+
+
+@dataclasses.dataclass
+class Outcome:
+    """What one ensemble command did.
+
+    Attributes:
+        result: the ``EnsembleResult``.
+        out_dir: the output folder.
+        devices: the devices the chunks were spread over.
+        chunk_size: members per vectorised solve, as used (a multiple of the devices).
+        already_finished: members found finished in ``out_dir`` (resumed), 0 for a fresh run.
+        run_now: the other members, handed to the solver by this call (or recorded as failed
+            without a solve when their drawn values are inadmissible).
+        wall_time_s: wall time of the engine call (compilation included).
+    """
+
+    result: Any
+    out_dir: Path
+    devices: list
+    chunk_size: int
+    already_finished: int
+    run_now: int
+    wall_time_s: float
+
+
+def _previous(out_dir: Path) -> int:
+    """Members the output folder's manifest says are finished (0 if it has none)."""
+    import json
+
+    try:
+        return int(json.loads((out_dir / MANIFEST).read_text(encoding="utf-8"))["finished"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return 0
+
+
+def run_engine(
+    prepared: Prepared,
+    args: argparse.Namespace,
+    call: Callable[..., Any],
+    members: int,
+    table_name: str,
+    say: Callable[..., None],
+) -> Outcome:
+    """Make the output folder and run ``call(**engine options)`` (``montecarlo`` or ``sweep``).
+
+    The chunk is ``--chunk-size``, or ``members`` when there are fewer (the engine pads a chunk
+    with nominal members), rounded up to a multiple of the devices.
+
+    Raises:
+        UsageError: the folder holds another configuration (the engine's message), or cannot be
+            written.
+    """
+    settings = prepared.settings
+    out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
+    devices = local_devices(args.devices)
+    per = len(devices)
+    chunk = -(-min(args.chunk_size, members) // per) * per
+    previous = _previous(out_dir)
+    if args.devices is not None and per < args.devices:
+        say(
+            f"note: {per} device{'s' if per > 1 else ''} available, not {args.devices} (JAX had "
+            f"started before {DEVICE_COUNT_FLAG} was set, or XLA_FLAGS sets fewer)"
+        )
+    quiet = args.quiet
+    progress = not (quiet or args.no_progress) and sys.stderr.isatty()
+    say(
+        f"{len(devices)} {devices[0].platform.upper()} device{'s' if per > 1 else ''}, "
+        f"chunks of {chunk} members; compiling (one-off) and solving ...",
+        flush=True,
+    )
+    started = time.perf_counter()
+    try:
+        result = call(
+            t0=0.0,
+            statistics_start=prepared.statistics_start,
+            num_points=prepared.num_points,
+            solver=prepared.solver,
+            continuous_fraction=prepared.continuous_fraction,
+            chunk_size=chunk,
+            devices=devices,
+            out=out_dir,
+            table_name=table_name,
+            progress=progress,
+        )
+    except EnsembleError as e:
+        raise UsageError(one_line(e)) from None
+    except jaxclear.ModelError as e:
+        raise UsageError(one_line(e)) from None
+    except OSError as e:
+        raise RunError(
+            f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out "
+            "folder"
+        ) from None
+    wall = time.perf_counter() - started
+    return Outcome(
+        result=result,
+        out_dir=out_dir,
+        devices=devices,
+        chunk_size=chunk,
+        already_finished=previous,
+        run_now=len(result) - previous,
+        wall_time_s=wall,
+    )
+
+
+def base_info(prepared: Prepared, outcome: Outcome, argv: list[str], fmt: int) -> dict[str, Any]:
+    """The JSON summary's common part: command, configuration (as run.json), devices, timing."""
+    import jax
+
+    settings = prepared.settings
+    solver = prepared.solver
+    return {
+        "format": fmt,
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "command": [PROG, *argv],
+        "config_file": str(Path(settings.config_file).resolve()) if settings.config_file else None,
+        "config": settings.config,
+        "clearance_per_joint": settings.joint_tables,
+        "description": settings.description,
+        "sources": {f"{sec}.{key}": src for (sec, key), src in settings.sources.items()},
+        "mechanism": settings.mechanism,
+        "clearance_joints": [j.name for j in prepared.mechanism.clearance_joints],
+        "t_end_s": prepared.t1,
+        "num_points": prepared.num_points,
+        "kept_window_s": [prepared.statistics_start, prepared.t1],
+        "solver": {f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)},
+        "continuous_fraction": prepared.continuous_fraction,
+        "devices": len(outcome.devices),
+        "device_kind": outcome.devices[0].device_kind,
+        "jax_backend": jax.default_backend(),
+        "device_flag": prepared.device_flag,
+        "fast_compile": prepared.fast_compile,
+        "chunk_size": outcome.chunk_size,
+        "already_finished": outcome.already_finished,
+        "run_now": outcome.run_now,
+        "wall_time_s": outcome.wall_time_s,
+        "timing": (
+            "wall_time_s: wall time of this call's ensemble solve, compilation included "
+            "(members resumed from disk are not solved again); per-member times are in the table"
+        ),
+    }
+
+
+def finish(
+    outcome: Outcome,
+    info: dict[str, Any],
+    json_name: str,
+    table_name: str,
+    kind: str,
+    plots: bool,
+    say: Callable[..., None],
+) -> int:
+    """Write the JSON summary and the plots, print the result; 0, or ``RunError`` if all failed."""
+    result = outcome.result
+    out_dir = outcome.out_dir
+    summary = result.summary()
+    files = [table_name, json_name]
+    ok = summary["succeeded"] > 0
+    try:
+        if plots and ok:
+            from ..plot import save_ensemble_plots
+
+            files += [p.name for p in save_ensemble_plots(result, out_dir, kind=kind)]
+        info.update(summary)
+        info["files"] = files
+        info["versions"] = _outputs.package_versions()
+        _outputs.write_json(out_dir / json_name, info)
+    except OSError as e:
+        raise RunError(
+            f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out "
+            "folder"
+        ) from None
+    if outcome.already_finished:
+        say(
+            f"resumed from {out_dir}/: {outcome.already_finished} of {len(result)} members were "
+            f"already finished, {outcome.run_now} left to solve"
+        )
+    say(
+        f"{summary['succeeded']} of {summary['members']} members succeeded, "
+        f"{summary['failed']} failed{f' (see {json_name})' if summary['failed'] else ''}; "
+        f"{outcome.wall_time_s:.2f} s{' (compilation included)' if outcome.run_now else ''}"
+    )
+    for line in summary_lines(result, summary, kind):
+        say(line)
+    say(f"wrote {', '.join(files)} to {out_dir}/")
+    if not ok:
+        first = summary["failures"][0]["message"] if summary["failures"] else ""
+        raise RunError(
+            f"all {summary['members']} members failed (member 0: {first}); see "
+            f"{out_dir / json_name}"
+        )
+    return 0
+
+
+def _number(value: float) -> str:
+    """4 significant digits, without an exponent up to 1e7 (as the plots' legends)."""
+    return f"{value:.0f}" if 1e4 <= abs(value) < 1e7 else f"{value:.4g}"
+
+
+ASCII = str.maketrans({"µ": "u", "²": "^2", "·": " ", "−": "-"})
+"""Printed lines stay ASCII (as ``jaxclear run``'s): any terminal encoding can show them."""
+
+
+def summary_lines(result, summary: dict[str, Any], kind: str = "montecarlo") -> list[str]:
+    """One line per main statistic, in the plots' units: for a Monte Carlo the median and the
+    5-95 % range; for a sweep the range over the values and where its ends lie."""
+    import numpy as np
+
+    from ..plot import main_ensemble_statistics, statistic_axis
+
+    lines = []
+    for name in main_ensemble_statistics(result):
+        s = summary["statistics"].get(name)
+        if s is None:
+            continue
+        title, unit, scale = statistic_axis(name)
+        unit = f" {unit}" if unit else ""
+        if kind == "sweep":
+            y = np.where(result.succeeded, result.statistics[name], np.nan)
+            at = [result.values[int(np.nanargmin(y)), 0], result.values[int(np.nanargmax(y)), 0]]
+            line = (
+                f"  {title}: {_number(s['min'] * scale)} .. {_number(s['max'] * scale)}{unit} (min at "
+                f"{result.names[0]} = {at[0]:.6g}, max at {at[1]:.6g})"
+            )
+        else:
+            line = (
+                f"  {title}: median {_number(s['p50'] * scale)}{unit}, 5-95 % "
+                f"{_number(s['p5'] * scale)} .. {_number(s['p95'] * scale)}{unit}"
+            )
+        lines.append(line.translate(ASCII))
+    return lines

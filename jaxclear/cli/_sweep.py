@@ -1,0 +1,155 @@
+"""``jaxclear sweep [CONFIG.toml] --param NAME (--values ... | --range ...)``: one parameter swept."""
+
+import argparse
+
+import numpy as np
+
+import jaxclear
+
+from ..analysis._ensemble import EnsembleError
+from ..analysis._montecarlo import sweep_values
+from ._common import UsageError, one_line
+from ._ensemble_common import add_ensemble_arguments, base_info, finish, prepare, run_engine
+from ._settings import add_setting_arguments, config_reference
+
+DESCRIPTION = """\
+Sweep one parameter of the mechanism over given values, everything else nominal: one member per
+value, solved together (vectorised chunks spread over the CPU cores or GPUs), and write sweep.csv,
+sweep.json and sweep.png into --out DIR.
+
+The mechanism, speed, clearance joints and laws, horizon and solver come from the same config file
+and options as 'jaxclear run' (its [montecarlo] table, if any, is ignored). The horizon in seconds
+is fixed by the config's rpm and revolutions, also when rpm itself is swept. Members start centred
+(--start wall is refused). The same command run again resumes from --out DIR; a changed
+configuration is refused."""
+
+EPILOG = f"""\
+parameter names: as jaxclear.parameter_names(mechanism): B.clearance, B.restitution,
+B.friction_coefficient, B.young_modulus, rod_mass, slider_mass, rpm, ... (SI units; rpm in rev/min).
+
+examples:
+  jaxclear sweep --clearance-joints B --param B.clearance --range 5e-5 5e-4 10 --out sweep-c
+  jaxclear sweep --clearance-joints B --param rpm --values 1000 2000 3000 5000 --out sweep-rpm
+
+outputs in --out DIR: sweep.csv (one row per value, in order: index, value, statistics, solver
+steps, wall time, status, message), ensemble.json (the engine's manifest, for resuming),
+sweep.json (configuration, values, devices, timing, summary, failures), sweep.png (main statistics
+against the parameter; failed values marked). See docs/ensembles.md.
+
+exit codes: 0 at least one value succeeded, 1 all failed, 2 bad input (including an output folder
+that holds another configuration).
+
+config file (TOML; every key optional; command-line options override it):
+{config_reference()}
+"""
+
+SWEEP_JSON = "sweep.json"
+SWEEP_CSV = "sweep.csv"
+SWEEP_FORMAT = 1
+
+
+def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
+    """Register the ``sweep`` subcommand."""
+    sw = subparsers.add_parser(
+        "sweep",
+        allow_abbrev=False,
+        help="sweep one parameter (clearance, speed, restitution, ...) over values",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sw.add_argument(
+        "config", nargs="?", metavar="CONFIG.toml", help="TOML config file (as for 'run')"
+    )
+    sw.add_argument(
+        "--param",
+        required=True,
+        metavar="NAME",
+        help="the swept parameter, e.g. B.clearance or rpm (jaxclear.parameter_names)",
+    )
+    values = sw.add_mutually_exclusive_group(required=True)
+    values.add_argument(
+        "--values",
+        nargs="+",
+        metavar="V",
+        help="the values, SI units, in order; separated by spaces or commas (a first value like "
+        "-1e-3 that argparse takes for an option: --values=-1e-3,0,1e-3)",
+    )
+    values.add_argument(
+        "--range",
+        nargs=3,
+        metavar=("START", "STOP", "N"),
+        help="N values evenly spaced from START to STOP (both included)",
+    )
+    add_setting_arguments(sw)
+    add_ensemble_arguments(sw)
+    return sw
+
+
+def _values(args: argparse.Namespace) -> np.ndarray:
+    try:
+        if args.values is not None:
+            texts = [t for v in args.values for t in v.split(",") if t.strip()]
+            try:
+                numbers = [float(t) for t in texts]
+            except ValueError:
+                raise UsageError(
+                    f"--values {' '.join(args.values)}: give numbers separated by spaces or commas"
+                ) from None
+            return sweep_values(values=numbers)
+        start, stop, num = args.range
+        try:
+            start, stop = float(start), float(stop)
+        except ValueError:
+            raise UsageError(
+                f"--range {' '.join(args.range)}: START and STOP must be numbers"
+            ) from None
+        try:
+            count = int(num)
+        except ValueError:
+            raise UsageError(
+                f"--range {' '.join(args.range)}: N must be an integer (the number of values)"
+            ) from None
+        return sweep_values(start=start, stop=stop, num=count)
+    except EnsembleError as e:
+        option = "--values" if args.values is not None else "--range"
+        raise UsageError(f"{option}: {one_line(e)}") from None
+
+
+def run(args: argparse.Namespace, argv: list[str]) -> int:
+    """Run ``jaxclear sweep``; returns 0, raises ``UsageError`` (2) or ``RunError`` (1)."""
+    values = _values(args)
+    prepared = prepare(args, "sweep")
+    settings = prepared.settings
+    try:
+        info = jaxclear.parameter_info(prepared.mechanism, args.param)
+    except jaxclear.ModelError as e:
+        raise UsageError(f"--param: {one_line(e)}") from None
+    say = (lambda *a, **k: None) if args.quiet else print
+    unit = f" {info.unit}" if info.unit else ""
+    say(
+        f"jaxclear {jaxclear.__version__}: sweep of {args.param} over {len(values)} values "
+        f"({values.min():.6g} .. {values.max():.6g}{unit}), {settings.mechanism}, "
+        f"{prepared.t1:.6g} s, {prepared.num_points} points, statistics from "
+        f"{prepared.statistics_start:.6g} s, solver {prepared.solver.method}"
+    )
+
+    def call(**options):
+        return jaxclear.sweep(
+            prepared.mechanism, args.param, values.tolist(), prepared.t1, **options
+        )
+
+    outcome = run_engine(prepared, args, call, len(values), SWEEP_CSV, say)
+    summary = base_info(prepared, outcome, argv, SWEEP_FORMAT)
+    summary.update(
+        kind="sweep", parameter=args.param, unit=info.unit, values=[float(v) for v in values]
+    )
+    return finish(
+        outcome,
+        summary,
+        SWEEP_JSON,
+        SWEEP_CSV,
+        "sweep",
+        settings.config["output"]["plots"],
+        say,
+    )

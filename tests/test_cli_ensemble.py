@@ -1,0 +1,321 @@
+"""The ``jaxclear montecarlo`` and ``jaxclear sweep`` commands: outputs, resume, refusals, bad input.
+
+Every solving call uses examples/montecarlo_h7g6.toml (clearance joint B, Lankarani-Nikravesh
+contact, modified Coulomb friction) with the same short horizon, chunk size and one device, and
+draws or sweeps B.clearance only: one compilation of the engine's chunk serves them all (about
+20 s on one core); each later call traces once (about a second) and solves in a fraction of one.
+"""
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxclear import cli
+from jaxclear.analysis import fit_clearance
+from jaxclear.analysis._ensemble import DEFAULT_CONTINUOUS_FRACTION
+from jaxclear.cli._config import resolve_settings
+from jaxclear.cli._ensemble_common import DEVICE_COUNT_FLAG, apply_device_count
+from jaxclear.cli._main import build_parser
+
+EXAMPLE = Path(__file__).parents[1] / "examples" / "montecarlo_h7g6.toml"
+SHORT = [
+    "--revolutions",
+    "0.25",
+    "--skip-revolutions",
+    "0.05",
+    "--points-per-revolution",
+    "120",
+    "--chunk-size",
+    "4",
+    "--devices",
+    "1",
+    "--no-progress",
+]
+SAMPLES = 6
+FIT, DIAMETER = "H7/g6", 0.02  # the example's B.clearance
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(autouse=True)
+def _keep_xla_flags(monkeypatch):
+    """The commands add flags to XLA_FLAGS (read once, at JAX's start): undo that after each test,
+    so later tests in this process see the variable as it was."""
+    if "XLA_FLAGS" in os.environ:
+        monkeypatch.setenv("XLA_FLAGS", os.environ["XLA_FLAGS"])
+    else:
+        monkeypatch.delenv("XLA_FLAGS", raising=False)
+
+
+def montecarlo_argv(out, *extra, seed="1", samples=str(SAMPLES)):
+    return [
+        "montecarlo",
+        str(EXAMPLE),
+        *SHORT,
+        "--samples",
+        samples,
+        "--seed",
+        seed,
+        "--out",
+        str(out),
+        *extra,
+    ]
+
+
+def sweep_argv(out, *extra):
+    return ["sweep", str(EXAMPLE), *SHORT, "--param", "B.clearance", "--out", str(out), *extra]
+
+
+def read_rows(path):
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def montecarlo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("mc")
+    assert cli.main(montecarlo_argv(out, "--quiet")) == 0
+    return out
+
+
+def test_montecarlo_writes_outputs(montecarlo_run):
+    out = montecarlo_run
+    for name in ("samples.csv", "summary.json", "histograms.png", "scatter.png", "ensemble.json"):
+        assert (out / name).exists(), name
+    for name in ("histograms.png", "scatter.png"):
+        assert (out / name).read_bytes().startswith(PNG_SIGNATURE)
+    rows = read_rows(out / "samples.csv")
+    assert sorted(int(r["index"]) for r in rows) == list(range(SAMPLES))
+    assert all(r["status"] == "ok" for r in rows), [r["message"] for r in rows]
+    low, high = fit_clearance(FIT, DIAMETER)
+    drawn = np.array([float(r["B.clearance"]) for r in rows])
+    assert np.all((drawn >= low) & (drawn <= high)), drawn
+    assert np.unique(drawn).size == SAMPLES
+    force = np.array([float(r["B_peak_normal_force"]) for r in rows])
+    assert np.all(np.isfinite(force) & (force > 0))
+
+    info = json.loads((out / "summary.json").read_text())
+    assert info["kind"] == "montecarlo"
+    assert (info["samples"], info["seed"], info["members"]) == (SAMPLES, 1, SAMPLES)
+    assert (info["succeeded"], info["failed"], info["failures"]) == (SAMPLES, 0, [])
+    assert info["distributions"] == {
+        "B.clearance": {"fit": FIT, "diameter": DIAMETER, "within": "uniform"}
+    }
+    assert (info["devices"], info["chunk_size"]) == (1, 4)
+    assert info["continuous_fraction"] == DEFAULT_CONTINUOUS_FRACTION  # not set in the file
+    assert info["config"]["clearance"]["joints"] == "B"
+    assert info["wall_time_s"] > 0 and info["versions"]["jaxclear"]
+    stats = info["statistics"]["B_peak_normal_force"]
+    assert stats["min"] <= stats["p5"] <= stats["p50"] <= stats["p95"] <= stats["max"]
+    np.testing.assert_allclose(stats["p50"], np.median(force), rtol=1e-12)
+    assert set(info["files"]) == {"samples.csv", "summary.json", "histograms.png", "scatter.png"}
+
+
+def test_resume_solves_nothing(montecarlo_run, capsys):
+    before = read_rows(montecarlo_run / "samples.csv")
+    assert cli.main(montecarlo_argv(montecarlo_run)) == 0
+    out = capsys.readouterr().out
+    assert f"{SAMPLES} of {SAMPLES} members were already finished, 0 left to solve" in out
+    assert f"{SAMPLES} of {SAMPLES} members succeeded, 0 failed" in out
+    assert "B peak normal force: median" in out
+    # every row as it was, wall_time_s included: a member solved again would have a new one
+    assert read_rows(montecarlo_run / "samples.csv") == before
+
+
+@pytest.mark.parametrize(
+    "change, changed",
+    [({"seed": "2"}, "description.seed"), ({"samples": "5"}, "description.samples")],
+)
+def test_changed_configuration_is_refused(montecarlo_run, capsys, change, changed):
+    before = (montecarlo_run / "samples.csv").read_bytes()
+    with pytest.raises(SystemExit) as exc:
+        cli.main(montecarlo_argv(montecarlo_run, "--quiet", **change))
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "another configuration" in err and changed in err, err
+    assert len(err.splitlines()) == 1
+    assert (montecarlo_run / "samples.csv").read_bytes() == before
+
+
+def test_sweep_range(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert cli.main(sweep_argv(out, "--range", "1e-4", "4e-4", "4")) == 0
+    assert "B peak normal force: " in capsys.readouterr().out
+    rows = read_rows(out / "sweep.csv")
+    expected = np.linspace(1e-4, 4e-4, 4)
+    np.testing.assert_array_equal([float(r["B.clearance"]) for r in rows], expected)
+    assert [int(r["index"]) for r in rows] == [0, 1, 2, 3]
+    assert all(r["status"] == "ok" for r in rows)
+    info = json.loads((out / "sweep.json").read_text())
+    assert (info["kind"], info["parameter"], info["unit"]) == ("sweep", "B.clearance", "m")
+    np.testing.assert_array_equal(info["values"], expected)
+    assert (out / "sweep.png").read_bytes().startswith(PNG_SIGNATURE)
+
+
+def test_sweep_values_in_order_with_an_inadmissible_one(tmp_path):
+    out = tmp_path / "sweep"
+    values = [3e-4, -1e-5, 1e-4, 2e-4]  # a negative clearance: recorded as failed, not solved
+    argv = sweep_argv(out, "--quiet", "--values=" + ",".join(map(str, values)))
+    assert cli.main(argv) == 0
+    rows = read_rows(out / "sweep.csv")
+    assert [float(r["B.clearance"]) for r in rows] == values
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok", "ok"]
+    assert "B.clearance" in rows[1]["message"] and "admissible" in rows[1]["message"]
+    info = json.loads((out / "sweep.json").read_text())
+    assert [f["index"] for f in info["failures"]] == [1]
+
+
+def test_sweep_all_failed_exits_1(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(sweep_argv(tmp_path / "sweep", "--quiet", "--values=-1e-5,-2e-5"))
+    assert exc.value.code == 1
+    assert "all 2 members failed" in capsys.readouterr().err
+    info = json.loads((tmp_path / "sweep" / "sweep.json").read_text())
+    assert info["succeeded"] == 0 and len(info["failures"]) == 2
+
+
+# --- bad input: exit 2 before any solve, no output folder -----------------------------------------
+
+CONFIG = """\
+[clearance]
+joints = "B"
+contact = "lankarani-nikravesh"
+friction = "modified-coulomb"
+"""
+BAD_MONTECARLO = {
+    "misspelt distribution": (
+        '[montecarlo.B]\nclearance = { distribution = "uniformm", low = 3e-4, high = 6e-4 }\n',
+        [],
+        "B.clearance: unknown distribution 'uniformm'",
+    ),
+    "missing key": (
+        '[montecarlo]\n"B.clearance" = { distribution = "uniform", low = 3e-4 }\n',
+        [],
+        "B.clearance: missing key(s) 'high'",
+    ),
+    "unknown fit": (
+        '[montecarlo.B]\nclearance = { fit = "H7/zz6", diameter = 0.02 }\n',
+        [],
+        "B.clearance",
+    ),
+    "unknown parameter": (
+        "[montecarlo]\nrodmass = 0.2\n",
+        [],
+        "unknown parameter 'rodmass'; did you mean 'rod_mass'",
+    ),
+    "unknown joint": (
+        "[montecarlo.C]\nclearance = 3e-4\n",
+        [],
+        "unknown parameter 'C.clearance'",
+    ),
+    "given twice": (
+        '[montecarlo]\n"B.clearance" = 3e-4\n[montecarlo.B]\nclearance = 4e-4\n',
+        [],
+        "B.clearance is given twice",
+    ),
+    "no distributions": ("", [], "no distributions"),
+    "wall start": (
+        "[montecarlo.B]\nclearance = 3e-4\n",
+        ["--start", "wall"],
+        "'wall' is not supported by montecarlo",
+    ),
+    "no samples": ("[montecarlo.B]\nclearance = 3e-4\n", ["--samples", "0"], "--samples 0"),
+    "zero chunk": ("[montecarlo.B]\nclearance = 3e-4\n", ["--chunk-size", "0"], "--chunk-size"),
+}
+
+
+def assert_usage_error(capsys, argv, match):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("jaxclear: error: "), err
+    assert match in lines[0], err
+
+
+@pytest.mark.parametrize("case", list(BAD_MONTECARLO))
+def test_bad_montecarlo_input(case, tmp_path, capsys):
+    table, extra, match = BAD_MONTECARLO[case]
+    config = tmp_path / "mc.toml"
+    config.write_text(CONFIG + table)
+    out = tmp_path / "out"
+    argv = ["montecarlo", str(config), "--samples", "4", "--out", str(out), *extra]
+    assert_usage_error(capsys, argv, match)
+    assert not out.exists(), "bad input must be found before the output folder is made"
+
+
+BAD_SWEEP = {
+    "values and range": (["--values", "1e-4", "--range", "1e-4", "2e-4", "2"], "not allowed with"),
+    "neither": ([], "one of the arguments --values --range is required"),
+    "unknown parameter": (["--param", "B.clearence", "--values", "1e-4"], "did you mean"),
+    "range count": (["--range", "1e-4", "2e-4", "2.5"], "N must be an integer"),
+    "not a number": (["--values", "1e-4", "big"], "give numbers"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_SWEEP))
+def test_bad_sweep_input(case, tmp_path, capsys):
+    extra, match = BAD_SWEEP[case]
+    out = tmp_path / "out"
+    param = [] if "--param" in extra else ["--param", "B.clearance"]
+    argv = ["sweep", "--clearance-joints", "B", *param, "--out", str(out), *extra]
+    assert_usage_error(capsys, argv, match)
+    assert not out.exists()
+
+
+def test_run_ignores_the_montecarlo_table():
+    args = build_parser().parse_args(["run", str(EXAMPLE)])
+    settings = resolve_settings(args)
+    assert settings.montecarlo == {"B": {"clearance": {"fit": FIT, "diameter": DIAMETER}}}
+    assert settings.config["clearance"]["joints"] == "B"
+
+
+def test_help(capsys):
+    for command, words in (
+        ("montecarlo", ("--samples", "--seed", "[montecarlo]", "--chunk-size", "--devices")),
+        ("sweep", ("--param", "--values", "--range", "--chunk-size")),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            cli.main([command, "--help"])
+        assert exc.value.code == 0
+        text = capsys.readouterr().out
+        for word in words:
+            assert word in text, (command, word)
+
+
+def test_device_count_flag(monkeypatch):
+    monkeypatch.setenv("XLA_FLAGS", f"{DEVICE_COUNT_FLAG}=3")
+    assert apply_device_count(8) == "set by XLA_FLAGS"  # the user's own flag wins
+    assert os.environ["XLA_FLAGS"] == f"{DEVICE_COUNT_FLAG}=3"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
+    assert apply_device_count(5) == f"{DEVICE_COUNT_FLAG}=5"
+    assert os.environ["XLA_FLAGS"].split() == [
+        "--xla_cpu_use_fusion_emitters=false",
+        f"{DEVICE_COUNT_FLAG}=5",
+    ]
+    monkeypatch.delenv("XLA_FLAGS")
+    assert apply_device_count(None) == f"{DEVICE_COUNT_FLAG}={len(os.sched_getaffinity(0))}"
+
+
+@pytest.mark.slow
+def test_two_cpu_devices_in_a_fresh_process(tmp_path):
+    """A fresh process gets --devices 2 as two CPU devices and splits the chunk over them."""
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    out = tmp_path / "mc"
+    argv = montecarlo_argv(out, "--quiet", samples="4")
+    argv[argv.index("--devices") + 1] = "2"
+    code = f"import sys; from jaxclear import cli; sys.exit(cli.main({argv!r}))"
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600
+    )
+    assert result.returncode == 0, result.stderr
+    info = json.loads((out / "summary.json").read_text())
+    assert (info["devices"], info["succeeded"]) == (2, 4)
+    assert info["device_flag"] == f"{DEVICE_COUNT_FLAG}=2"
