@@ -202,7 +202,8 @@ SHARDED = textwrap.dedent(
 
 def test_chunks_spread_over_two_devices_give_the_same_members(ensemble):
     """XLA_FLAGS=--xla_force_host_platform_device_count=2: each chunk is split over two CPU
-    devices (one per core here) by shard_map; members come out as in one device."""
+    devices (one per core here), each its own computation from its own thread; members come out as
+    in one device."""
     args = {
         "solver": {"method": "tsit5", "rtol": 1e-10, "atol": 1e-13, "max_steps": 8000},
         "values": {k: v[:3].tolist() for k, v in VALUES.items()},

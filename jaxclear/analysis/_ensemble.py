@@ -11,8 +11,8 @@ How it runs:
 - members are solved ``chunk_size`` at a time by one compiled, vmapped solve (one compilation per
   chunk size, topology and settings); memory grows with the chunk;
 - with several local devices (``jax.local_devices()``: GPUs, or CPU cores exposed by
-  ``XLA_FLAGS=--xla_force_host_platform_device_count=N``) each chunk is split over the devices by
-  ``jax.shard_map``: every device runs its own share in its own loop;
+  ``XLA_FLAGS=--xla_force_host_platform_device_count=N``) each chunk is split over the devices:
+  every device solves its own share as its own computation, launched from its own thread;
 - a vmapped solve steps all its members until the slowest finishes (lockstep), so members are
   ordered by expected cost before they are chunked (``order="cost"``: the step counts of the
   members solved so far, regressed on the drawn values; see ``_cost_order``);
@@ -23,6 +23,8 @@ How it runs:
   message, its statistics are NaN, and the others go on.
 """
 
+import collections
+import concurrent.futures
 import csv
 import dataclasses
 import hashlib
@@ -196,18 +198,9 @@ def _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, st
 
 
 @eqx.filter_jit
-def _vmap_chunk(fn, args, values, devices):
-    """``fn(v, *args)`` for every row ``v`` of ``values``: vmapped, and split over ``devices`` by
-    ``jax.shard_map`` (each device loops over its own share) when there are several."""
-
-    def batch(vals):
-        return jax.vmap(lambda v: fn(v, *args))(vals)
-
-    if devices is None:
-        return batch(values)
-    mesh = jax.sharding.Mesh(np.asarray(devices), ("members",))
-    spec = jax.sharding.PartitionSpec("members")
-    return jax.shard_map(batch, mesh=mesh, in_specs=spec, out_specs=spec, check_vma=False)(values)
+def _vmap_chunk(fn, args, values):
+    """``fn(v, *args)`` for every row ``v`` of ``values``, vmapped."""
+    return jax.vmap(lambda v: fn(v, *args))(values)
 
 
 def chunk_size_for(chunk_size: int, devices) -> int:
@@ -246,14 +239,41 @@ def map_members(
     values = np.asarray(values, dtype=float)
     devs = _devices(devices)
     chunk = chunk_size_for(chunk_size, devs)
+    per = chunk // len(devs) if devs else chunk
     outputs = []
+    pending = collections.deque()
+
+    def collect():
+        start, count, parts = pending.popleft()
+        got = [jax.device_get(p) for p in parts]
+        out = jax.tree_util.tree_map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *got)
+        outputs.append(jax.tree_util.tree_map(lambda x: x[:count], out))
+        if on_chunk is not None:
+            on_chunk(start, start + count)
+
     for start in range(0, len(values), chunk):
         part = values[start : start + chunk]
         padded = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
-        out = jax.device_get(_vmap_chunk(fn, args, jnp.asarray(padded), devs))
-        outputs.append(jax.tree_util.tree_map(lambda x, k=len(part): np.asarray(x)[:k], out))
-        if on_chunk is not None:
-            on_chunk(start, start + len(part))
+        if devs is None:
+            parts = [_vmap_chunk(fn, args, jnp.asarray(padded))]
+        else:
+            # each device solves its own share as an independent computation, launched from its
+            # own thread (JAX releases the GIL while XLA runs): the devices run at once. (A
+            # shard_map over the devices hung for good in some configurations: 12 members
+            # drawing rod_mass with the ideal-joint deviation on two CPU devices.)
+            shares = [padded[k * per : (k + 1) * per] for k in range(len(devs))]
+
+            def run(k, shares=shares):
+                out = _vmap_chunk(fn, args, jax.device_put(shares[k], devs[k]))
+                return jax.block_until_ready(out)
+
+            with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:
+                parts = list(pool.map(run, range(len(devs))))
+        pending.append((start, len(part), parts))
+        if len(pending) > 1:
+            collect()
+    while pending:
+        collect()
     return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs), *outputs)
 
 
@@ -367,7 +387,7 @@ def _inadmissible(mechanism: Mechanism, names, values: np.ndarray) -> list[str]:
         for i in np.flatnonzero(~np.isfinite(x) | below | (x >= high)):
             if not out[i]:
                 left = "[" if closed else "("
-                out[i] = f"{n} = {x[i]!r} is outside its admissible range {left}{low:g}, {high:g})"
+                out[i] = f"{n} = {float(x[i])!r} is outside its admissible range {left}{low:g}, {high:g})"
     return out
 
 
