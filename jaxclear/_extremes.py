@@ -146,7 +146,9 @@ class Extremes(eqx.Module):
                 row = jnp.minimum(count, buffer.shape[0] - 1)
                 store = ends & (count < buffer.shape[0])
                 new = jnp.where(store, jnp.stack([onset, at]), buffer[row])
-                buffer = jax.lax.dynamic_update_slice(buffer, new[None, :], (row, jnp.zeros_like(row)))
+                buffer = jax.lax.dynamic_update_slice(
+                    buffer, new[None, :], (row, jnp.zeros_like(row))
+                )
             events[k] = buffer
             counts[k] = count + ends.astype(count.dtype)
             onsets[k] = jnp.where(starts, at, jnp.where(ends, jnp.nan, onset))

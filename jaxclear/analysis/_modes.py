@@ -13,7 +13,9 @@ import numpy as np
 
 FREE, IMPACT, CONTINUOUS = 0, 1, 2
 MODE_NAMES = {FREE: "free", IMPACT: "impact", CONTINUOUS: "continuous"}
-DEFAULT_CONTINUOUS_FRACTION = 0.05  # [ours] contact lasting >= 5 % of a crank period is continuous
+DEFAULT_CONTINUOUS_FRACTION = (
+    0.02  # contact lasting >= 2 % of a crank period is continuous (the literature's rule)
+)
 
 
 def contact_modes(t, penetration, minimum_duration: float) -> np.ndarray:

@@ -547,7 +547,7 @@ SETTINGS: tuple[Setting, ...] = (
         "clearance",
         "continuous_fraction",
         float,
-        0.05,
+        0.02,
         "",
         "contact lasting at least this fraction of a crank period counts as continuous (else impact); in (0, 1)",
         None,
