@@ -424,7 +424,7 @@ def write_modes_csv(path: Path, events: dict) -> Path:
         with open(tmp, "w", newline="", encoding="utf-8") as f:
             f.write("joint,onset_s,end_s,duration_s,mode,finished\n")
             for onset, joint, end, duration, mode, finished in rows:
-                f.write(f"{joint},{onset:.9e},{end:.9e},{duration:.9e},{mode},{finished}\n")
+                f.write(f"{joint},{onset!r},{end!r},{duration!r},{mode},{finished}\n")
 
     return atomic_write(path, write)
 

@@ -22,11 +22,14 @@ from ._iso286 import fit_clearance as fit_clearance
 from ._iso286 import fit_zones as fit_zones
 from ._iso286 import standard_tolerance as standard_tolerance
 from ._iso286 import tolerance_zone as tolerance_zone
+from ._lyapunov import ConstraintProjection as ConstraintProjection
 from ._lyapunov import LyapunovResult as LyapunovResult
+from ._lyapunov import MechanismFlow as MechanismFlow
 from ._lyapunov import ODEFlow as ODEFlow
 from ._lyapunov import flow_lyapunov as flow_lyapunov
 from ._lyapunov import largest_lyapunov as largest_lyapunov
 from ._lyapunov import lyapunov_solver as lyapunov_solver
+from ._lyapunov import mechanism_weights as mechanism_weights
 from ._lyapunov import two_trajectory_lyapunov as two_trajectory_lyapunov
 from ._modes import CONTINUOUS as CONTINUOUS
 from ._modes import FREE as FREE
