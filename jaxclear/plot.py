@@ -19,6 +19,8 @@ from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 from matplotlib.ticker import MultipleLocator
 
 from ._outputs import (
@@ -332,6 +334,116 @@ def plot_joint_forces(traj, *, ax=None) -> Figure:
     return fig
 
 
+MODE_STYLE: dict[str, dict[str, Any]] = {
+    "impact": dict(color="C3", linewidth=1.2),
+    "continuous": dict(color="C0", alpha=0.85),
+}
+"""How ``plot_mode_timeline`` draws the two contact modes (free flight is left blank)."""
+
+
+def plot_mode_timeline(
+    traj,
+    *,
+    continuous_fraction: float | None = None,
+    start: float | None = None,
+    events: dict | None = None,
+    ax=None,
+) -> Figure:
+    """Contact-mode timeline: one row per clearance joint, against the driven angle (or time).
+
+    Continuous contacts are drawn as bars over their duration, impacts (contacts shorter than
+    ``continuous_fraction`` of the crank period; microseconds long, too short to show as bars) as a
+    tick at their onset; free flight is blank. The contacts are those located from the solver's
+    steps (``analysis.contact_events``), so a contact shorter than the output interval is drawn too.
+    The legend gives each joint's counts and time shares.
+
+    Args:
+        traj: a single ``Trajectory`` simulated with ``contact_events=K`` (and extremes on).
+        continuous_fraction: the impact/continuous threshold as a fraction of the crank period
+            (default that of ``analysis.contact_events``, 2 %).
+        start: first time shown, s (default the statistics window's start).
+        events: the output of ``analysis.contact_events`` if already computed (then
+            ``continuous_fraction`` and ``start`` are not used to recompute it).
+        ax: draw into these axes instead of a new figure.
+
+    Returns:
+        The ``Figure``.
+
+    Raises:
+        ValueError: ``traj`` has no recorded contact events (the message says how to record them).
+    """
+    from .analysis import CONTINUOUS, IMPACT, contact_events
+
+    if events is None:
+        options = (
+            {} if continuous_fraction is None else {"continuous_fraction": continuous_fraction}
+        )
+        events = contact_events(traj, start=start, **options)
+    fig, ax = _new_axes(ax)
+    t = np.asarray(traj.t)
+    t_first = float(traj.extremes.start) if start is None else float(start)
+    t_last = float(traj.t_final)
+    driver = traj.mechanism.driver
+    if driver is not None:
+        angle = column_map(traj)[f"{driver.body}_angle"].values
+
+        def x_of(times):  # the driven angle is smooth in t: interpolation between instants is exact
+            return np.interp(np.asarray(times, dtype=float), t, angle)  # to the angle's curvature
+
+        xlabel = _angle_label(traj)
+    else:
+
+        def x_of(times):
+            return 1e3 * np.asarray(times, dtype=float)
+
+        xlabel = "Time (ms)"
+    order = [j.name for j in traj.mechanism.clearance_joints]
+    names = [n for n in order if n in events] + [n for n in events if n not in order]
+    span = t_last - t_first
+    for row, name in enumerate(names):
+        e = events[name]
+        y = len(names) - 1 - row  # first joint on top
+        impact = e["mode"] == IMPACT
+        continuous = e["mode"] == CONTINUOUS
+        bars = [
+            (x_of(a), x_of(b) - x_of(a))
+            for a, b in zip(e["onset"][continuous], e["end"][continuous])
+        ]
+        ax.broken_barh(bars, (y - 0.3, 0.6), **MODE_STYLE["continuous"])
+        ax.vlines(x_of(e["onset"][impact]), y - 0.35, y + 0.35, **MODE_STYLE["impact"])
+        share = np.sum(e["end"][continuous] - e["onset"][continuous]) / span if span > 0 else 0.0
+        ax.text(
+            1.01,
+            y,
+            f"{int(impact.sum())} impacts\n{int(continuous.sum())} continuous ({share:.0%} of time)",
+            transform=ax.get_yaxis_transform(),
+            va="center",
+            fontsize="x-small",
+        )
+    ax.set_yticks(range(len(names)), [f"joint {n}" for n in reversed(names)])
+    ax.set_ylim(-0.7, len(names) - 0.3)
+    x0, x1 = x_of([t_first, t_last])
+    if driver is not None:
+        _angle_ticks(ax, np.array([x0, x1]))
+    ax.set_xlim(x0, x1)
+    ax.set_xlabel(xlabel)
+    handles = [
+        Line2D([], [], label="impact (onset)", **MODE_STYLE["impact"]),
+        Patch(label="continuous contact", **MODE_STYLE["continuous"]),
+    ]
+    ax.legend(
+        handles=handles,
+        loc="upper left",
+        bbox_to_anchor=(0.0, -0.18),
+        ncol=2,
+        fontsize="small",
+        frameon=False,
+    )
+    ax.set_title(f"Contact modes (blank: free flight){_speed_label(traj)}")
+    ax.grid(True, axis="x", alpha=0.3)
+    return fig
+
+
 def standard_plots(traj) -> list[tuple[str, str, str]]:
     """(file name, quantity, horizontal axis) of the standard plots of ``traj``'s mechanism.
 
@@ -410,6 +522,14 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
         for name in clearance_joint_names(traj):
             written.append(_save(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))
     return written
+
+
+def save_mode_timeline(traj, out_dir, *, events=None, start=None, dpi: int = DPI) -> Path:
+    """Write ``mode_timeline.png`` (``plot_mode_timeline``) into ``out_dir``; returns its path."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fig = plot_mode_timeline(traj, events=events, start=start)
+    return _save(fig, out_dir, "mode_timeline.png", dpi)
 
 
 def plot_fit(result) -> Figure:

@@ -229,7 +229,7 @@ def test_clearance_run_json_and_plots(clearance_run):
     assert sum(shares.values()) == pytest.approx(1.0)
     assert info["columns"]["B_normal_force"]["unit"] == "N"
     assert info["columns"]["B_ecc_x"]["unit"] == "m"
-    pngs = [*STANDARD_PNGS, "normal_force.png", "orbit_B.png"]
+    pngs = [*STANDARD_PNGS, "normal_force.png", "orbit_B.png", "mode_timeline.png"]
     for name in pngs:
         assert (clearance_run / name).stat().st_size > 5_000, name
     assert set(info["files"]) >= set(pngs)

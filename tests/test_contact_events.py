@@ -143,3 +143,20 @@ def test_run_writes_located_modes(tmp_path):
         assert info["contact_modes"]["B"][mode] == pytest.approx(total / span, abs=1e-9)
     assert sum(info["contact_mode_shares"].values()) == pytest.approx(1.0)
     assert "modes.csv" in info["files"]
+
+
+def test_mode_timeline_draws_every_located_contact(first_contacts):
+    """One tick per impact, one bar per continuous contact, first joint on top, units on the axis."""
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    from jaxclear.plot import plot_mode_timeline
+
+    e = contact_events(first_contacts)["B"]
+    fig = plot_mode_timeline(first_contacts)
+    ax = fig.axes[0]
+    ticks = [c for c in ax.collections if isinstance(c, LineCollection)]
+    bars = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    assert sum(len(c.get_segments()) for c in ticks) == np.sum(e["mode"] == IMPACT)
+    assert sum(len(c.get_paths()) for c in bars) == np.sum(e["mode"] == CONTINUOUS)
+    assert ax.get_xlabel() == "Crank angle (°)"
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["joint B"]

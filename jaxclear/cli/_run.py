@@ -388,7 +388,12 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             else {"contact_mode_shares": {}, "contact_modes": {}}
         )
         if modes.get("events") is not None:
-            files.append(_outputs.write_modes_csv(out_dir / MODES_CSV, modes.pop("events")).name)
+            events = modes.pop("events")
+            files.append(_outputs.write_modes_csv(out_dir / MODES_CSV, events).name)
+            if config["output"]["plots"]:
+                from ..plot import save_mode_timeline
+
+                files.append(save_mode_timeline(traj, out_dir, events=events, start=t_keep).name)
         modes.pop("events", None)
         info.update(statistics=statistics, **modes, files=files)
         paths = _outputs.write_results(out_dir, traj, info, fraction)
