@@ -36,6 +36,11 @@ solver's steps (peaks at step midpoints and ends, the RMS as a quadrature over s
 vectorised solve rounds differently and so takes slightly different steps (0.7 % more or fewer):
 measured up to 3.7e-6 (RMS input torque, 4000 rpm) and 3.1e-6 (peak slider acceleration); peak
 contact forces and penetrations agree to 1e-9."""
+EVENTS = 256
+"""The ensemble's default room for contacts over this horizon (``simulate(contact_events=...)``)."""
+SHARE = 1e-6
+"""Absolute agreement of contact-mode time shares: contact onsets and ends are interpolated between
+the solver's samples, which the two solves place slightly differently."""
 ROUNDOFF = {"max_constraint_violation"}
 """Statistics at round-off level (1e-15 m): compared with an absolute tolerance instead."""
 
@@ -75,7 +80,12 @@ def test_members_equal_their_single_runs(mechanism, ensemble):
         assert ensemble.status[i] == "ok", ensemble.messages[i]
         member = jaxclear.with_parameters(mechanism, {k: v[i] for k, v in VALUES.items()})
         single = jaxclear.simulate(
-            member, T1, num_points=POINTS, statistics_start=START, solver=TIGHT
+            member,
+            T1,
+            num_points=POINTS,
+            statistics_start=START,
+            solver=TIGHT,
+            contact_events=EVENTS,
         )
         for name, value in jaxclear.analysis.statistics(single).items():
             if name in ROUNDOFF:
@@ -85,6 +95,18 @@ def test_members_equal_their_single_runs(mechanism, ensemble):
         # the same solve, rounded differently: step sequences part at rejections, so counts
         # differ slightly (measured 0.7 %)
         assert abs(ensemble.num_steps[i] - int(single.num_steps)) < 0.05 * int(single.num_steps)
+        # contact modes from the contacts located in the member's solve, as from the single run's
+        shares = jaxclear.analysis.event_mode_shares(single)
+        mine = {m: ensemble.statistics[f"B_{m}_share"][i] for m in ("free", "impact", "continuous")}
+        for m, value in mine.items():
+            assert value == pytest.approx(shares["joints"]["B"][m], abs=SHARE), m
+        for count in ("impacts", "continuous_contacts"):
+            assert ensemble.statistics[f"B_{count}"][i] == shares["joints"]["B"][count], count
+        for label in ("F", "I", "C"):
+            expected = shares["labels"].get(label, 0.0)
+            got = ensemble.statistics[f"combination_{label}_share"][i]
+            assert got == pytest.approx(expected, abs=SHARE), label
+        assert ensemble.statistics["contact_modes_located"][i] == 1.0
     assert ensemble.statistics["B_peak_normal_force"][0] > 1e3  # impacts happened
 
 
@@ -92,6 +114,9 @@ def test_contact_mode_shares_and_deviation(ensemble):
     ok = ensemble.succeeded
     shares = sum(ensemble.statistics[f"B_{m}_share"] for m in ("free", "impact", "continuous"))
     np.testing.assert_allclose(shares[ok], 1.0, rtol=1e-12)
+    combinations = sum(ensemble.statistics[f"combination_{m}_share"] for m in ("F", "I", "C"))
+    np.testing.assert_allclose(combinations[ok], 1.0, rtol=1e-12)
+    assert np.all(ensemble.statistics["B_impacts"][ok] >= 1)
     assert np.all(ensemble.statistics["slider_a_deviation"][ok] > 0)
     assert np.all(ensemble.statistics["crank_torque_deviation"][ok] > 0)
 

@@ -4,7 +4,8 @@ Monte Carlo over tolerances (``montecarlo``), parameter sweeps (``sweep``) and t
 them run through ``run_ensemble``. A member is the mechanism with some named parameters
 (``jaxclear.parameter_names``) replaced; its result is the ``statistics`` of ``jaxclear run``
 (same names, from the solver's steps), the RMS deviation of chosen signals from the ideal
-mechanism, per-joint contact-mode shares, the solver's step count and its share of the chunk's
+mechanism, per-joint contact-mode shares and counts and the shares of the 3ⁿ combinations (from
+contacts located from the solver's steps), the solver's step count and its share of the chunk's
 wall time.
 
 How it runs:
@@ -48,7 +49,15 @@ from .._solver import SolverConfig, solver_config
 from .._startup import ideal_mechanism
 from .._trajectory import INPUT_ERRORS
 from ..model import Mechanism, parameter_info, with_parameters
-from ._modes import CONTINUOUS, FREE, IMPACT, MODE_NAMES, contact_modes
+from ._modes import (
+    CONTINUOUS,
+    FREE,
+    IMPACT,
+    MODE_NAMES,
+    all_combinations,
+    located_contacts,
+    shares_of_contacts,
+)
 from ._parameter_space import progress_bar
 from ._statistics import statistics
 
@@ -61,7 +70,9 @@ MANIFEST = "ensemble.json"
 OK, FAILED = "ok", "failed"
 NON_NEGATIVE = frozenset({"friction_coefficient", "viscous_friction", "damping", "free_length"})
 """Fields whose admissible range includes its lower bound 0 (``ParameterInfo.domain`` is open)."""
-FORMAT = 1
+FORMAT = 2  # 2: contact modes from located events, counts and combination shares
+EVENTS_PER_REVOLUTION = 128
+"""Default room for contacts per clearance joint and crank revolution (``jaxclear run``'s too)."""
 
 
 @dataclasses.dataclass
@@ -74,8 +85,11 @@ class EnsembleResult:
         statistics: {name: (N,) values}, NaN where the member failed. Names: those of
             ``jaxclear.analysis.statistics`` (``B_peak_normal_force``, ``crank_torque_rms``, ...),
             ``<signal>_deviation`` (RMS deviation from the ideal mechanism over the statistics
-            window), ``torque_fluctuation`` (RMS of the input torque about its mean), and
-            ``<J>_free_share``, ``<J>_impact_share``, ``<J>_continuous_share``.
+            window), ``torque_fluctuation`` (RMS of the input torque about its mean), and the
+            contact modes over the statistics window from the contacts located from the solver's
+            steps (``mode_statistic_names``: per joint ``<J>_free_share``, ``<J>_impact_share``,
+            ``<J>_continuous_share``, ``<J>_impacts``, ``<J>_continuous_contacts``; per
+            combination ``combination_C-I-F_share`` and so on).
         status: (N,) ``"ok"`` or ``"failed"``.
         messages: (N,) why a member failed (``""`` if it did not).
         num_steps: (N,) solver steps (0 for members not solved).
@@ -161,14 +175,24 @@ def _window_mean(t, x, start):
     return jnp.sum(seg * 0.5 * (x[1:] + x[:-1])) / jnp.sum(seg)
 
 
-def _member_of_row(v, mechanism, names, config, ideal_config, deviation, ts, t0, t1, start):
-    return _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, start)
+def _member_of_row(v, mechanism, names, config, ideal_config, deviation, events, ts, t0, t1, start):
+    return _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0, t1, start)
 
 
-def _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, start):
-    """One member: its statistics, penetrations on the grid (for contact modes), outcome."""
+def _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0, t1, start):
+    """One member: its statistics, its contacts (located events, and penetrations on the grid in
+    case the event buffer overflows), outcome."""
     m = with_parameters(mechanism, {n: v[k] for k, n in enumerate(names)})
-    traj = simulate(m, t1, t0=t0, ts=ts, solver=config, statistics_start=start, throw=False)
+    traj = simulate(
+        m,
+        t1,
+        t0=t0,
+        ts=ts,
+        solver=config,
+        statistics_start=start,
+        throw=False,
+        contact_events=events if mechanism.clearance_joints else 0,
+    )
     stats = dict(statistics(traj))
     if mechanism.driver is not None:
         tau = traj.input_torque
@@ -186,7 +210,10 @@ def _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, st
         mine, theirs = signals(traj, deviation), signals(ideal, deviation)
         for name in deviation:
             stats[f"{name}_deviation"] = _window_rms(ts, mine[name] - theirs[name], start)
-    penetration = {j: traj.clearance[j]["penetration"] for j in traj.clearance}
+    contacts = {"penetration": {j: traj.clearance[j]["penetration"] for j in traj.clearance}}
+    if mechanism.clearance_joints:
+        x = traj.extremes
+        contacts.update(events=x.events, count=x.event_count, ongoing=x.contact_onset)
     outcome = {
         "num_steps": traj.num_steps,
         "succeeded": traj.succeeded,
@@ -194,7 +221,7 @@ def _member(mechanism, names, config, ideal_config, deviation, v, ts, t0, t1, st
         "input_error": traj.input_error,
         "t_final": traj.t_final,
     }
-    return stats, penetration, outcome
+    return stats, contacts, outcome
 
 
 @eqx.filter_jit
@@ -387,7 +414,9 @@ def _inadmissible(mechanism: Mechanism, names, values: np.ndarray) -> list[str]:
         for i in np.flatnonzero(~np.isfinite(x) | below | (x >= high)):
             if not out[i]:
                 left = "[" if closed else "("
-                out[i] = f"{n} = {float(x[i])!r} is outside its admissible range {left}{low:g}, {high:g})"
+                out[i] = (
+                    f"{n} = {float(x[i])!r} is outside its admissible range {left}{low:g}, {high:g})"
+                )
     return out
 
 
@@ -417,6 +446,7 @@ def run_ensemble(
     solver: "str | SolverConfig" = "auto",
     deviation: Sequence[str] | None = None,
     continuous_fraction: float = DEFAULT_CONTINUOUS_FRACTION,
+    contact_events: int | None = None,
     chunk_size: int = DEFAULT_CHUNK,
     order: str = "cost",
     devices: Sequence[Any] | None = None,
@@ -445,7 +475,12 @@ def run_ensemble(
             ``<signal>_deviation``; default ``slider_a`` and the input torque where present,
             ``()`` for none (one ideal solve per member less).
         continuous_fraction: contact lasting at least this fraction of the crank period counts as
-            continuous contact, shorter as an impact (``<J>_*_share`` statistics).
+            continuous contact, shorter as an impact (the contact-mode statistics).
+        contact_events: room for this many contacts per clearance joint and member (default
+            ``EVENTS_PER_REVOLUTION`` per crank revolution of the horizon, at least 256). The
+            contacts are located from the solver's steps (``jaxclear.analysis.contact_events``);
+            a member with more contacts takes its modes from the output grid instead
+            (``contact_modes_located`` 0).
         chunk_size: members per vectorised solve (rounded up to a multiple of the devices).
         order: ``"cost"`` (similar expected cost in one chunk, see the module docstring) or
             ``"index"`` (member order).
@@ -500,6 +535,15 @@ def run_ensemble(
     if mechanism.driver is not None:
         speed = float(np.asarray(mechanism.driver.constant_speed))
         period = 2.0 * math.pi / abs(speed) if speed else None
+    if contact_events is None:
+        revolutions = (t1 - t0) / period if period else 1.0
+        contact_events = max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions))
+    if int(contact_events) != contact_events or contact_events < 1:
+        raise EnsembleError(
+            f"contact_events must be a positive integer (room for contacts per joint), got "
+            f"{contact_events!r}."
+        )
+    contact_events = int(contact_events)
 
     # statistic names, from an abstract evaluation of one member
     shape_stats, _, _ = eqx.filter_eval_shape(
@@ -509,6 +553,7 @@ def run_ensemble(
         config,
         solver_config("fast"),
         deviation,
+        contact_events,
         jnp.asarray(vals[0]),
         jnp.asarray(ts),
         jnp.asarray(t0),
@@ -516,9 +561,7 @@ def run_ensemble(
         jnp.asarray(start),
     )
     joints = [j.name for j in mechanism.clearance_joints]
-    stat_names = list(shape_stats) + [
-        f"{j}_{MODE_NAMES[m]}_share" for j in joints for m in (FREE, IMPACT, CONTINUOUS)
-    ]
+    stat_names = list(shape_stats) + mode_statistic_names(joints)
     result = EnsembleResult(
         names=names,
         values=vals,
@@ -541,6 +584,7 @@ def run_ensemble(
         "solver": dataclasses.asdict(config),
         "deviation": list(deviation),
         "continuous_fraction": continuous_fraction,
+        "contact_events": contact_events,
         "mechanism": _mechanism_values(mechanism),
         "description": dict(description or {}),
     }
@@ -576,6 +620,7 @@ def run_ensemble(
                     config,
                     ideal_config,
                     deviation,
+                    contact_events,
                     jnp.asarray(ts),
                     jnp.asarray(t0, dtype=float),
                     jnp.asarray(t1, dtype=float),
@@ -626,7 +671,22 @@ def _mechanism_values(mechanism: Mechanism) -> dict[str, Any]:
     return out
 
 
-def _record(result, i, row, stats, pen, outcome, ts, start, period, fraction):
+def mode_statistic_names(joints: Sequence[str]) -> list[str]:
+    """Contact-mode statistics of an ensemble member with these clearance joints: per joint
+    ``<J>_free_share``, ``<J>_impact_share``, ``<J>_continuous_share`` (time shares over the
+    statistics window), ``<J>_impacts``, ``<J>_continuous_contacts`` (counts); per combination of
+    all joints' modes ``combination_<label>_share`` (3ⁿ labels such as ``C-I-F``, joints in the
+    mechanism's order, ``analysis.combination_label``); ``contact_modes_located`` (1 when the modes
+    come from the located contacts, 0 from the output grid after an event-buffer overflow)."""
+    if not joints:
+        return []
+    names = [f"{j}_{MODE_NAMES[m]}_share" for j in joints for m in (FREE, IMPACT, CONTINUOUS)]
+    names += [f"{j}_{count}" for j in joints for count in ("impacts", "continuous_contacts")]
+    names += [f"combination_{label}_share" for label in all_combinations(len(joints))]
+    return names + ["contact_modes_located"]
+
+
+def _record(result, i, row, stats, contacts, outcome, ts, start, period, fraction):
     code = int(outcome["input_error"][row])
     res = int(outcome["result"][row])
     result.num_steps[i] = int(outcome["num_steps"][row])
@@ -638,14 +698,65 @@ def _record(result, i, row, stats, pen, outcome, ts, start, period, fraction):
         return
     for k, v in stats.items():
         result.statistics[k][i] = float(v[row])
-    keep = ts >= start
-    span = period if period is not None else float(ts[-1] - ts[0])
-    for j, p in pen.items():
-        labels = contact_modes(ts[keep], p[row][keep], fraction * span)
-        for m in (FREE, IMPACT, CONTINUOUS):
-            result.statistics[f"{j}_{MODE_NAMES[m]}_share"][i] = float(np.mean(labels == m))
+    joints = list(contacts["penetration"])
+    if joints:
+        modes = _member_modes(
+            contacts, row, joints, ts, start, float(outcome["t_final"][row]), period, fraction
+        )
+        for k, v in modes.items():
+            result.statistics[k][i] = v
     result.status[i] = OK
     result.messages[i] = ""
+
+
+def _member_modes(contacts, row, joints, ts, start, t_end, period, fraction) -> dict[str, float]:
+    """One member's ``mode_statistic_names`` from its located contacts (or, after an overflow of
+    the event buffer, from the output grid)."""
+    span = period if period is not None else float(ts[-1] - ts[0])
+    threshold = fraction * span
+    counts = {j: int(contacts["count"][j][row]) for j in joints}
+    located = all(counts[j] <= contacts["events"][j].shape[-2] for j in joints)
+    if located:
+        events = {
+            j: located_contacts(
+                contacts["events"][j][row],
+                counts[j],
+                contacts["ongoing"][j][row],
+                start,
+                t_end,
+                threshold,
+            )
+            for j in joints
+        }
+    else:  # contacts from the saved grid: runs of positive penetration
+        keep = ts >= start
+        t = ts[keep]
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        events = {}
+        for j in joints:
+            inside = np.asarray(contacts["penetration"][j][row])[keep] > 0
+            edges = np.diff(np.concatenate([[0], inside.astype(int), [0]]))
+            first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+            onset, end = t[first], np.minimum(t[last] + dt, t[-1])
+            duration = t[last] - t[first] + dt
+            events[j] = {
+                "onset": onset,
+                "end": end,
+                "duration": duration,
+                "mode": np.where(duration >= threshold, CONTINUOUS, IMPACT),
+            }
+    shares = shares_of_contacts(events, joints, start, t_end)
+    out: dict[str, float] = {}
+    for j in joints:
+        share = shares["joints"][j]
+        for m in (FREE, IMPACT, CONTINUOUS):
+            out[f"{j}_{MODE_NAMES[m]}_share"] = share[MODE_NAMES[m]]
+        out[f"{j}_impacts"] = float(share["impacts"])
+        out[f"{j}_continuous_contacts"] = float(share["continuous_contacts"])
+    for label in all_combinations(len(joints)):
+        out[f"combination_{label}_share"] = shares["labels"].get(label, 0.0)
+    out["contact_modes_located"] = float(located)
+    return out
 
 
 def _save(out_dir: Path, table_name: str, settings, result: EnsembleResult, finished) -> None:

@@ -124,37 +124,57 @@ def contact_events(
     if np.ndim(traj.t_final) != 0:
         raise ValueError("contact_events takes one trajectory; index a batched one first.")
     period = reference_period or crank_period(traj.mechanism) or float(traj.t[-1] - traj.t[0])
-    threshold = continuous_fraction * period
-    t_end = float(traj.t_final)
     t_start = float(x.start) if start is None else float(start)
     out = {}
     for joint, buffer in x.events.items():
-        count = int(x.event_count[joint])
-        room = buffer.shape[0]
+        count, room = int(x.event_count[joint]), buffer.shape[0]
         if count > room:
             raise ValueError(
                 f"joint {joint} had {count} contacts, more than the {room} recorded: simulate "
                 f"with contact_events >= {count}."
             )
-        events = np.asarray(buffer)[:count]
-        onset, end = events[:, 0], events[:, 1]
-        finished = np.ones(count, dtype=bool)
-        ongoing = float(x.contact_onset[joint])
-        if np.isfinite(ongoing):
-            onset = np.append(onset, ongoing)
-            end = np.append(end, t_end)
-            finished = np.append(finished, False)
-        duration = end - onset  # the whole contact decides its mode, also when cut at start
-        keep = end > t_start
-        onset = np.maximum(onset[keep], t_start)
-        out[joint] = {
-            "onset": onset,
-            "end": end[keep],
-            "duration": duration[keep],
-            "mode": np.where(duration[keep] >= threshold, CONTINUOUS, IMPACT),
-            "finished": finished[keep],
-        }
+        out[joint] = located_contacts(
+            buffer,
+            count,
+            x.contact_onset[joint],
+            t_start,
+            float(traj.t_final),
+            continuous_fraction * period,
+        )
     return out
+
+
+def located_contacts(
+    buffer, count: int, ongoing, t_start: float, t_end: float, threshold: float
+) -> dict[str, np.ndarray]:
+    """One joint's contacts from the recorded event buffer (``Extremes.events``), as in
+    ``contact_events``.
+
+    Args:
+        buffer: (K, 2) onset and end times of finished contacts, s (the first ``count`` rows used).
+        count: finished contacts (at most K).
+        ongoing: onset of a contact in progress at ``t_end``, s (NaN if none).
+        t_start: keep contacts that end after this time; one in progress then is cut there, s.
+        t_end: end of the run, s.
+        threshold: contacts lasting at least this long are continuous contact, shorter an impact, s.
+    """
+    events = np.asarray(buffer)[:count]
+    onset, end = events[:, 0], events[:, 1]
+    finished = np.ones(count, dtype=bool)
+    ongoing = float(ongoing)
+    if np.isfinite(ongoing):
+        onset = np.append(onset, ongoing)
+        end = np.append(end, t_end)
+        finished = np.append(finished, False)
+    duration = end - onset  # the whole contact decides its mode, also when cut at start
+    keep = end > t_start
+    return {
+        "onset": np.maximum(onset[keep], t_start),
+        "end": end[keep],
+        "duration": duration[keep],
+        "mode": np.where(duration[keep] >= threshold, CONTINUOUS, IMPACT),
+        "finished": finished[keep],
+    }
 
 
 def event_mode_shares(
@@ -168,9 +188,11 @@ def event_mode_shares(
 
     Returns:
         ``{"joints": {joint: {"free", "impact", "continuous": time share; "impacts",
-        "continuous_contacts": counts}}, "combinations": {"O:free A:impact B:continuous": share}}``
-        over [start, end of the run]; the combinations are those of all clearance joints at once
-        (3ⁿ possible), in the mechanism's joint order.
+        "continuous_contacts": counts}}, "combinations": {"O:free A:impact B:continuous": share},
+        "labels": {"F-I-C": share}}`` over [start, end of the run]; the combinations are those of
+        all clearance joints at once (3ⁿ possible, only those that occur are listed), in the
+        mechanism's joint order; ``labels`` are the same shares under the short labels of
+        ``combination_label`` (F free flight, I impact, C continuous contact).
     """
     events = contact_events(
         traj,
@@ -180,9 +202,36 @@ def event_mode_shares(
     )
     x = traj.extremes
     t_start = float(x.start) if start is None else float(start)
-    t_end = float(traj.t_final)
-    span = t_end - t_start
     order = [j.name for j in traj.mechanism.clearance_joints if j.name in events]
+    return shares_of_contacts(events, order, t_start, float(traj.t_final))
+
+
+MODE_LETTERS = {FREE: "F", IMPACT: "I", CONTINUOUS: "C"}
+"""One-letter mode names of a combination label: ``C-I-F`` is O in continuous contact, A in an
+impact and B in free flight (joints in the mechanism's order)."""
+
+
+def combination_label(modes) -> str:
+    """Short label of a combination of joint modes, e.g. ``(2, 1, 0)`` -> ``"C-I-F"``."""
+    return "-".join(MODE_LETTERS[int(m)] for m in modes)
+
+
+def all_combinations(count: int) -> list[str]:
+    """The 3ⁿ combination labels of ``count`` joints, free flight first (``F-F-F``, ``F-F-I``, ...)."""
+    return [
+        combination_label(k) for k in itertools.product((FREE, IMPACT, CONTINUOUS), repeat=count)
+    ]
+
+
+def shares_of_contacts(events: dict, order, t_start: float, t_end: float) -> dict:
+    """``event_mode_shares`` of contacts already located (``contact_events``/``located_contacts``).
+
+    Args:
+        events: ``{joint: contacts}`` as ``contact_events`` returns.
+        order: the joints, in the mechanism's order (the order of a combination's modes).
+        t_start, t_end: the window, s.
+    """
+    span = t_end - t_start
     joints = {}
     cuts = {t_start, t_end}
     for j in order:
@@ -201,6 +250,7 @@ def event_mode_shares(
     mids = 0.5 * (points[1:] + points[:-1])
     widths = np.diff(points)
     combos: dict[str, float] = {}
+    short: dict[str, float] = {}
     if order:
         labels = []
         for j in order:
@@ -214,4 +264,5 @@ def event_mode_shares(
             inside = np.all(stacked == key, axis=-1)
             name = " ".join(f"{n}:{MODE_NAMES[int(k)]}" for n, k in zip(order, key))
             combos[name] = float(np.sum(widths[inside]) / span)
-    return {"joints": joints, "combinations": combos}
+            short[combination_label(key)] = combos[name]
+    return {"joints": joints, "combinations": combos, "labels": short}
