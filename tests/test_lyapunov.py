@@ -14,6 +14,7 @@ from jaxclear.analysis import (
     ODEFlow,
     flow_lyapunov,
     largest_lyapunov,
+    lyapunov_sweep,
     mechanism_weights,
     two_trajectory_lyapunov,
 )
@@ -119,18 +120,13 @@ def test_ideal_slider_crank_is_not_chaotic():
     bound = -alpha + 2 * np.log(k) / (k * period)  # factor 2: the first interval's alignment
     assert -alpha * 1.01 < float(result.exponent) < min(bound, 0.0)
     # vmapped over a parameter (the exponent per value of a sweep): equals the single run
-    batch = jax.vmap(
-        lambda rpm: (
-            largest_lyapunov(
-                jaxclear.with_parameters(mech, {"rpm": rpm}),
-                k * period,
-                interval=period,
-                project=False,
-            ).exponent
-        )
-    )(jnp.array([5000.0, 4000.0]))
-    assert float(batch[0]) == pytest.approx(float(result.exponent), rel=1e-6)
-    assert float(batch[1]) < 0.0
+    batch = lyapunov_sweep(mech, "rpm", [5000.0, 4000.0], k * period, project=False)
+    assert batch.interval == pytest.approx(period)  # the base mechanism's crank period
+    assert np.all(batch.succeeded)
+    assert batch.exponents[0] == pytest.approx(float(result.exponent), rel=1e-6)
+    assert batch.exponents[1] < 0.0
+    with pytest.raises(ValueError, match="not a parameter"):
+        lyapunov_sweep(mech, "B.clearance", [1e-4], k * period)
 
 
 PROJECTION_ATOL = 1e-12

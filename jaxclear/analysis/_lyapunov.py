@@ -13,6 +13,7 @@ where D_y φ d is the tangent of the flow (``jax.jvp``) or the divided differenc
 (φ(y_k + ε d_k) − φ(y_k))/ε of two solves.
 """
 
+import dataclasses
 import math
 from collections.abc import Callable
 
@@ -28,7 +29,8 @@ from .._simulate import assemble, initial_state, simulate
 from .._solver import SolverConfig, recommended_solver, solver_config
 from ..dynamics._assembly import assemble_state
 from ..dynamics._constraints import constraint_velocity, constraints
-from ..model import Mechanism
+from ..model import Mechanism, parameter_names, with_parameters
+from ._ensemble import DEFAULT_CHUNK, map_members
 
 METHODS = ("tangent", "two_trajectory")
 
@@ -479,4 +481,134 @@ def two_trajectory_lyapunov(
     revolution (docs/chaos.md)."""
     return largest_lyapunov(
         mechanism, t1, separation=separation, method="two_trajectory", **options
+    )
+
+
+# --- over the values of a parameter ---------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class LyapunovSweep:
+    """The largest Lyapunov exponent for each value of one parameter (``lyapunov_sweep``).
+
+    Attributes:
+        parameter: the swept parameter's name (``jaxclear.parameter_names``).
+        values: its values (N,), SI units.
+        exponents: λ per value (N,), 1/s; NaN where the estimate failed.
+        spread: the convergence indicator of each estimate (N,), 1/s (``LyapunovResult.spread``).
+        succeeded: (N,) every solve of the estimate succeeded.
+        interval: the renormalisation interval, s. transient: the start-up left out, s.
+        t1: the end of every estimate, s.
+    """
+
+    parameter: str
+    values: np.ndarray
+    exponents: np.ndarray
+    spread: np.ndarray
+    succeeded: np.ndarray
+    interval: float
+    transient: float
+    t1: float
+
+
+def _lyapunov_member(v, mechanism, name, t1, interval, t0, transient, config, method, project):
+    m = with_parameters(mechanism, {name: v[0]})
+    r = largest_lyapunov(
+        m,
+        t1,
+        interval=interval,
+        t0=t0,
+        transient=transient,
+        solver=config,
+        method=method,
+        project=project,
+    )
+    ok = r.succeeded & jnp.isfinite(r.exponent)
+    return jnp.where(ok, r.exponent, jnp.nan), jnp.where(ok, r.spread, jnp.nan), ok
+
+
+def lyapunov_sweep(
+    mechanism: Mechanism,
+    name: str,
+    values,
+    t1: float,
+    *,
+    interval: float | None = None,
+    t0: float = 0.0,
+    transient: float = 0.0,
+    solver: "str | SolverConfig | None" = None,
+    method: str = "tangent",
+    project: bool = True,
+    chunk_size: int = DEFAULT_CHUNK,
+    devices=None,
+) -> LyapunovSweep:
+    """``largest_lyapunov`` for each value of one named parameter, in vmapped chunks
+    (``map_members``, as ``bifurcation_points``).
+
+    Every value uses the same interval, transient and end time in seconds (by default one crank
+    period of ``mechanism`` as given): over an ``rpm`` sweep the interval is then not each value's
+    period, which the estimate does not need (λ is a rate per second).
+
+    Args:
+        mechanism: the base mechanism (concrete values).
+        name: the parameter (``jaxclear.parameter_names``), e.g. ``"B.clearance"``, ``"rpm"``.
+        values: its values (N,), SI units (``rpm`` in rev/min).
+        t1: end time, s.
+        interval: renormalisation interval, s (default the base mechanism's crank period).
+        t0, transient: start and start-up time left out, s.
+        solver: default ``lyapunov_solver(mechanism)`` (rtol 1e-9; see ``largest_lyapunov``).
+        method: ``"tangent"`` or ``"two_trajectory"``. project: as in ``largest_lyapunov``.
+        chunk_size: values per vectorised solve. devices: devices to split each chunk over.
+
+    Returns:
+        A ``LyapunovSweep``.
+
+    Raises:
+        ValueError: an unknown ``name``, ``values`` not 1-D and finite, no ``interval`` without a
+            constant-speed driver, and the errors of ``largest_lyapunov``'s arguments.
+    """
+    known = parameter_names(mechanism)
+    if name not in known:
+        raise ValueError(
+            f"name {name!r} is not a parameter of this mechanism; choose among {known}."
+        )
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
+        raise ValueError(f"values must be a non-empty 1-D array of finite numbers, got {values!r}.")
+    if interval is None:
+        speed = None if mechanism.driver is None else mechanism.driver.constant_speed
+        if speed is None or not is_concrete(speed) or float(speed) == 0.0:
+            raise ValueError(
+                "interval: give the renormalisation interval, s (the default, one crank period, "
+                "needs a constant driver speed)."
+            )
+        interval = 2.0 * math.pi / abs(float(speed))
+    _intervals(t0, t1, transient, interval)  # argument errors before any compilation
+    config = lyapunov_solver(mechanism) if solver is None else solver_config(solver, mechanism)
+    exponents, spread, ok = map_members(
+        _lyapunov_member,
+        (
+            mechanism,
+            name,
+            float(t1),
+            float(interval),
+            float(t0),
+            float(transient),
+            config,
+            _method(method),
+            bool(project),
+        ),
+        values[:, None],
+        chunk_size=min(chunk_size, values.size),
+        devices=devices,
+    )
+    return LyapunovSweep(
+        parameter=name,
+        values=values,
+        exponents=np.asarray(exponents),
+        spread=np.asarray(spread),
+        succeeded=np.asarray(ok, dtype=bool),
+        interval=float(interval),
+        transient=float(transient),
+        t1=float(t1),
     )
