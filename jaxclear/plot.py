@@ -634,9 +634,17 @@ def statistic_axis(name: str) -> tuple[str, str, float]:
         signal = name[: -len("_deviation")]
         unit = _signal_unit(signal)
         return f"{_title(signal)} − ideal, RMS", UNIT_LABELS.get(unit, unit), 1.0
+    if name.startswith("combination_") and name.endswith("_share"):
+        return f"Combination {name[len('combination_') : -len('_share')]} share", "%", 100.0
     for mode in ("free", "impact", "continuous"):
         if name.endswith(f"_{mode}_share"):
             return f"{name[: -len(mode) - 7]} {mode}-mode share", "%", 100.0
+    if name.endswith("_impacts"):
+        return f"{name[: -len('_impacts')]} impacts", "count", 1.0
+    if name.endswith("_continuous_contacts"):
+        return f"{name[: -len('_continuous_contacts')]} continuous contacts", "count", 1.0
+    if name == "contact_modes_located":
+        return "Contact modes from located contacts (1) or the grid (0)", "", 1.0
     if name == "max_constraint_violation":
         return "Max constraint violation", "m", 1.0
     if name in ("statistics_start", "statistics_duration"):
@@ -871,5 +879,178 @@ def save_ensemble_plots(result, out_dir, *, kind: str = "montecarlo", dpi: int =
             _save(plot_ensemble_scatter(result), out_dir, "scatter.png", dpi),
         ]
     if kind == "sweep":
-        return [_save(plot_sweep(result), out_dir, "sweep.png", dpi)]
+        written = [_save(plot_sweep(result), out_dir, "sweep.png", dpi)]
+        if any(n.startswith("combination_") for n in result.statistics):
+            written.append(_save(plot_sweep_modes(result), out_dir, "sweep_modes.png", dpi))
+        return written
     raise ValueError(f"kind must be 'montecarlo' or 'sweep', got {kind!r}.")
+
+
+MODE_COLOURS = {"free": "0.85", "impact": "C3", "continuous": "C0"}
+"""Colours of the three contact modes in ``plot_sweep_modes``."""
+COMBINATION_MIN_SHARE = 0.01
+"""``plot_sweep_modes`` names the combinations that reach this time share at some value; the
+others are drawn together as "other"."""
+
+
+def _sweep_x(result):
+    if len(result.names) != 1:
+        raise ValueError(
+            f"needs an ensemble of one parameter, got {', '.join(result.names)}; use "
+            "plot_ensemble_scatter."
+        )
+    par_axis = parameter_axis(result.names[0])
+    x = np.asarray(result.values, dtype=float)[:, 0] * par_axis[2]
+    order = np.argsort(x, kind="stable")
+    keep = order[np.asarray(result.succeeded)[order]]
+    log = bool(np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min())
+    return par_axis, x, keep, log
+
+
+def plot_sweep_modes(result) -> Figure:
+    """Contact modes against the swept parameter (``jaxclear.sweep``): per clearance joint the time
+    shares of free flight, impact and continuous contact stacked to 100 %, and the shares of the
+    combinations of all joints' modes (``C-I-F``: first joint in continuous contact, second in an
+    impact, third in free flight); combinations under ``COMBINATION_MIN_SHARE`` everywhere are
+    drawn together as "other". The shares come from the contacts located in each member's solve,
+    over the statistics window.
+
+    Args:
+        result: an ``EnsembleResult`` of one parameter with contact-mode statistics.
+
+    Returns:
+        The ``Figure``.
+    """
+    par_axis, x, keep, log = _sweep_x(result)
+    stats = result.statistics
+    joints = [n[: -len("_free_share")] for n in stats if n.endswith("_free_share")]
+    combos = [n for n in stats if n.startswith("combination_") and n.endswith("_share")]
+    if not joints or not combos:
+        raise ValueError("the ensemble has no contact-mode statistics (no clearance joint).")
+    fig, axes = _grid(len(joints) + 1, 2, width=4.2, height=3.0)
+    xs = x[keep]
+    for ax, joint in zip(axes, joints):
+        shares = [np.asarray(stats[f"{joint}_{m}_share"])[keep] * 100 for m in MODE_COLOURS]
+        ax.stackplot(xs, shares, labels=list(MODE_COLOURS), colors=list(MODE_COLOURS.values()))
+        ax.set_title(f"joint {joint}", fontsize="medium")
+    ax = axes[-1]
+    shown = [
+        c
+        for c in combos
+        if np.nanmax(np.asarray(stats[c])[keep], initial=0.0) >= COMBINATION_MIN_SHARE
+    ]
+    other = sum((np.asarray(stats[c])[keep] for c in combos if c not in shown), np.zeros(len(keep)))
+    layers = [np.asarray(stats[c])[keep] * 100 for c in shown] + [other * 100]
+    labels = [c[len("combination_") : -len("_share")] for c in shown] + ["other"]
+    ax.stackplot(
+        xs, layers, labels=labels, colors=[f"C{k % 10}" for k in range(len(shown))] + ["0.6"]
+    )
+    ax.set_title(f"combinations ({'-'.join(joints)})", fontsize="medium")
+    for k, ax in enumerate(axes):
+        if log:
+            ax.set_xscale("log")
+        ax.set_xlabel(_label(par_axis))
+        ax.set_ylabel("time share (%)")
+        ax.set_ylim(0, 100)
+        ax.grid(True, alpha=0.3)
+        if k == 0 or k == len(axes) - 1:
+            ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    failed = len(result) - int(np.sum(result.succeeded))
+    fig.suptitle(
+        f"Contact modes against {result.names[0]} (located contacts"
+        f"{f'; {failed} failed values left out' if failed else ''})",
+        fontsize=10,
+    )
+    return fig
+
+
+def plot_bifurcation(diagram, signals: Sequence[str] | None = None) -> Figure:
+    """Bifurcation diagram (``analysis.bifurcation_points``): each value's Poincaré section points
+    (once per crank revolution) against the swept parameter, one panel per signal. A periodic
+    response is one point per value, period k is k points, scatter is quasi-periodic or chaotic.
+
+    Args:
+        diagram: a ``BifurcationDiagram``.
+        signals: the signals to show (default all in the diagram).
+
+    Returns:
+        The ``Figure``.
+    """
+    names = list(diagram.points) if signals is None else list(signals)
+    unknown = [n for n in names if n not in diagram.points]
+    if unknown or not names:
+        raise ValueError(
+            f"signals {unknown or names} not in the diagram; it has {list(diagram.points)}."
+        )
+    par_axis = parameter_axis(diagram.parameter)
+    values = np.asarray(diagram.values, dtype=float) * par_axis[2]
+    log = bool(np.all(values > 0) and values.max() >= SWEEP_LOG_RATIO * values.min())
+    fig, axes = _grid(len(names), 2, width=4.2, height=3.0)
+    revolutions = np.asarray(diagram.times).shape[-1]
+    for ax, name in zip(axes, names, strict=True):
+        unit = _signal_unit(name)
+        scale, unit = (
+            (1e6, "µm") if unit == "m" and "_ecc_" in name else (1.0, UNIT_LABELS.get(unit, unit))
+        )
+        y = np.asarray(diagram.points[name], dtype=float) * scale
+        ax.plot(
+            np.repeat(values, y.shape[1]), y.reshape(-1), ".", color="C0", markersize=2.5, alpha=0.7
+        )
+        failed = ~np.asarray(diagram.succeeded)
+        if failed.any():
+            _mark_failed(ax, values[failed], "failed")
+            ax.legend(fontsize="x-small")
+        if log:
+            ax.set_xscale("log")
+        ax.set_xlabel(_label(par_axis))
+        ax.set_ylabel(f"{name} ({unit})" if unit else name)
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(
+        f"Bifurcation diagram: Poincaré section once per crank revolution, {revolutions} "
+        f"revolutions per value",
+        fontsize=10,
+    )
+    return fig
+
+
+def plot_lyapunov_sweep(sweep) -> Figure:
+    """The largest Lyapunov exponent against the swept parameter (``analysis.lyapunov_sweep``),
+    with each estimate's convergence spread as an error bar; λ < 0 is a stable (periodic)
+    response, λ > 0 a chaotic one (docs/chaos.md on what λ means with impacts).
+
+    Args:
+        sweep: a ``LyapunovSweep``.
+
+    Returns:
+        The ``Figure``.
+    """
+    fig, ax = _new_axes(None)
+    par_axis = parameter_axis(sweep.parameter)
+    x = np.asarray(sweep.values, dtype=float) * par_axis[2]
+    ok = np.asarray(sweep.succeeded)
+    order = np.argsort(x, kind="stable")
+    keep = order[ok[order]]
+    ax.errorbar(
+        x[keep],
+        np.asarray(sweep.exponents)[keep],
+        yerr=np.asarray(sweep.spread)[keep],
+        fmt="o-",
+        markersize=4,
+        capsize=3,
+        label="λ (error bar: spread of the running estimate)",
+    )
+    ax.axhline(0.0, color="k", linewidth=0.8, linestyle="--", label="λ = 0 (chaos above)")
+    if (~ok).any():
+        _mark_failed(ax, x[~ok], "failed")
+    if np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min():
+        ax.set_xscale("log")
+    ax.set_xlabel(_label(par_axis))
+    ax.set_ylabel("Largest Lyapunov exponent λ (1/s)")
+    ax.set_title(
+        f"Largest Lyapunov exponent, renormalised every {sweep.interval * 1e3:.4g} ms after "
+        f"{sweep.transient * 1e3:.4g} ms",
+        fontsize="medium",
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    return fig

@@ -143,9 +143,14 @@ def test_changed_configuration_is_refused(montecarlo_run, capsys, change, change
 
 
 def test_sweep_range(tmp_path, capsys):
+    """A sweep with its optional stages: Poincaré sections (bifurcation diagram) and Lyapunov
+    exponents over one revolution from the start (--skip-revolutions 0 keeps them short)."""
     out = tmp_path / "sweep"
-    assert cli.main(sweep_argv(out, "--range", "1e-4", "4e-4", "4")) == 0
-    assert "B peak normal force: " in capsys.readouterr().out
+    stages = ["--skip-revolutions", "0", "--sections", "2", "--lyapunov", "1"]
+    assert cli.main(sweep_argv(out, "--range", "1e-4", "4e-4", "4", *stages)) == 0
+    printed = capsys.readouterr().out
+    assert "B peak normal force: " in printed
+    assert "largest Lyapunov exponent" in printed
     rows = read_rows(out / "sweep.csv")
     expected = np.linspace(1e-4, 4e-4, 4)
     np.testing.assert_array_equal([float(r["B.clearance"]) for r in rows], expected)
@@ -154,7 +159,30 @@ def test_sweep_range(tmp_path, capsys):
     info = json.loads((out / "sweep.json").read_text())
     assert (info["kind"], info["parameter"], info["unit"]) == ("sweep", "B.clearance", "m")
     np.testing.assert_array_equal(info["values"], expected)
-    assert (out / "sweep.png").read_bytes().startswith(PNG_SIGNATURE)
+    for png in ("sweep.png", "sweep_modes.png", "bifurcation.png", "lyapunov.png"):
+        assert (out / png).read_bytes().startswith(PNG_SIGNATURE), png
+        assert png in info["files"], png
+    # contact modes per value: the combinations that occur, their shares summing to 1
+    combinations = info["contact_mode_combinations"]
+    assert len(combinations) == 4
+    for shares, row in zip(combinations, rows, strict=True):
+        assert set(shares) <= {"F", "I", "C"} and sum(shares.values()) == pytest.approx(1.0)
+        for label, share in shares.items():
+            assert float(row[f"combination_{label}_share"]) == pytest.approx(share)
+    # two Poincaré points per value and signal: the start (no revolution skipped) and one
+    # revolution later
+    points = read_rows(out / "bifurcation.csv")
+    assert [int(r["index"]) for r in points] == [0, 0, 1, 1, 2, 2, 3, 3]
+    period = 60.0 / 5000.0
+    times = [float(r["time_s"]) for r in points]
+    np.testing.assert_allclose(times, [0.0, period] * 4, atol=1e-15)
+    assert all(np.isfinite(float(r["B_ecc_x"])) for r in points)
+    assert all(float(r["B_ecc_x"]) == 0.0 for r in points[::2])  # journals start centred
+    assert info["bifurcation"]["distinct_points"]["B_ecc_x"]["counts"] == [2, 2, 2, 2]
+    exponents = read_rows(out / "lyapunov.csv")
+    assert [int(r["succeeded"]) for r in exponents] == [1, 1, 1, 1]
+    assert all(np.isfinite(float(r["exponent_per_s"])) for r in exponents)
+    assert info["lyapunov"]["solver"]["rtol"] == pytest.approx(1e-9)
 
 
 def test_sweep_values_in_order_with_an_inadmissible_one(tmp_path):
@@ -257,6 +285,7 @@ BAD_SWEEP = {
     "unknown parameter": (["--param", "B.clearence", "--values", "1e-4"], "did you mean"),
     "range count": (["--range", "1e-4", "2e-4", "2.5"], "N must be an integer"),
     "not a number": (["--values", "1e-4", "big"], "give numbers"),
+    "negative sections": (["--values", "1e-4", "--sections", "-1"], "--sections -1"),
 }
 
 

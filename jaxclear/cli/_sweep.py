@@ -11,6 +11,9 @@ from ..analysis._montecarlo import sweep_values
 from ._common import UsageError, one_line
 from ._ensemble_common import add_ensemble_arguments, base_info, finish, prepare, run_engine
 from ._settings import add_setting_arguments, config_reference
+from ._sweep_chaos import add_arguments as add_chaos_arguments
+from ._sweep_chaos import check as check_chaos
+from ._sweep_chaos import run_stages
 
 DESCRIPTION = """\
 Sweep one parameter of the mechanism over given values, everything else nominal: one member per
@@ -30,11 +33,17 @@ B.friction_coefficient, B.young_modulus, rod_mass, slider_mass, rpm, ... (SI uni
 examples:
   jaxclear sweep --clearance-joints B --param B.clearance --range 5e-5 5e-4 10 --out sweep-c
   jaxclear sweep --clearance-joints B --param rpm --values 1000 2000 3000 5000 --out sweep-rpm
+  jaxclear sweep --clearance-joints B --param B.clearance --range 1e-4 5e-4 9 --sections 30 \
+      --lyapunov 4 --out chaos-c
 
-outputs in --out DIR: sweep.csv (one row per value, in order: index, value, statistics, solver
-steps, wall time, status, message), ensemble.json (the engine's manifest, for resuming),
-sweep.json (configuration, values, devices, timing, summary, failures), sweep.png (main statistics
-against the parameter; failed values marked). See docs/ensembles.md.
+outputs in --out DIR: sweep.csv (one row per value, in order: index, value, statistics including
+the contact-mode shares and counts per joint and the share of each combination of joint modes,
+solver steps, wall time, status, message), ensemble.json (the engine's manifest, for resuming),
+sweep.json (configuration, values, devices, timing, summary, failures, the combinations of
+contact modes per value), sweep.png (main statistics against the parameter; failed values
+marked), sweep_modes.png (contact-mode shares against the parameter); with --sections N
+bifurcation.csv/.png (Poincare section points per value), with --lyapunov N lyapunov.csv/.png
+(largest Lyapunov exponent per value). See docs/ensembles.md and docs/chaos.md.
 
 exit codes: 0 at least one value succeeded, 1 all failed, 2 bad input (including an output folder
 that holds another configuration).
@@ -81,6 +90,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         metavar=("START", "STOP", "N"),
         help="N values evenly spaced from START to STOP (both included)",
     )
+    add_chaos_arguments(sw)
     add_setting_arguments(sw)
     add_ensemble_arguments(sw)
     return sw
@@ -125,6 +135,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         info = jaxclear.parameter_info(prepared.mechanism, args.param)
     except jaxclear.ModelError as e:
         raise UsageError(f"--param: {one_line(e)}") from None
+    period = check_chaos(args, prepared.mechanism)
     say = (lambda *a, **k: None) if args.quiet else print
     unit = f" {info.unit}" if info.unit else ""
     say(
@@ -144,12 +155,34 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     summary.update(
         kind="sweep", parameter=args.param, unit=info.unit, values=[float(v) for v in values]
     )
-    return finish(
-        outcome,
-        summary,
-        SWEEP_JSON,
-        SWEEP_CSV,
-        "sweep",
-        settings.config["output"]["plots"],
-        say,
-    )
+    summary.update(_combinations(outcome.result, prepared.mechanism))
+    plots = settings.config["output"]["plots"]
+    code = finish(outcome, summary, SWEEP_JSON, SWEEP_CSV, "sweep", plots, say)
+    run_stages(args, prepared, outcome, values, period, summary, SWEEP_JSON, plots, say)
+    return code
+
+
+def _combinations(result, mechanism) -> dict:
+    """sweep.json's contact modes per value: the combinations that occur, with their time shares
+    (from the contacts located in each member's solve)."""
+    joints = [j.name for j in mechanism.clearance_joints]
+    if not joints:
+        return {}
+    prefix, suffix = "combination_", "_share"
+    names = [n for n in result.statistics if n.startswith(prefix) and n.endswith(suffix)]
+    per_value = []
+    for i in range(len(result)):
+        shares = {
+            n[len(prefix) : -len(suffix)]: float(result.statistics[n][i])
+            for n in names
+            if result.statistics[n][i] > 0
+        }
+        per_value.append(dict(sorted(shares.items(), key=lambda kv: -kv[1])))
+    return {
+        "contact_mode_combinations": per_value,
+        "combination_rule": (
+            f"labels give each joint's mode in the order {'-'.join(joints)}: F free flight, "
+            "I impact, C continuous contact; time shares over the kept window, from the contacts "
+            "located in each member's solve (failed values: empty)"
+        ),
+    }
