@@ -638,6 +638,40 @@ def test_import_starts_no_jax_backend():
     assert "xla_jaxclear_no_such_flag" in result.stderr
 
 
+def test_compilation_cache_stores_the_solve(tmp_path):
+    """``jaxclear run`` in a fresh process stores its compiled solve in the persistent cache
+    (``[solver] compilation_cache``, on by default; JAX refuses executables with host callbacks,
+    so this also checks the solve makes none) and says where in run.json; off, nothing is stored."""
+    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
+    for on in (True, False):
+        cache = tmp_path / f"cache-{on}"
+        env["JAXCLEAR_CACHE_DIR"] = str(cache)
+        argv = [
+            "run",
+            "--clearance-joints",
+            "none",
+            "--revolutions",
+            "0.1",
+            "--skip-revolutions",
+            "0",
+        ]
+        argv += ["--no-plots"]
+        argv += ["--quiet", "--out", str(tmp_path / f"out-{on}")]
+        argv += [] if on else ["--no-compilation-cache"]
+        code = f"import sys; from jaxclear import cli; sys.exit(cli.main({argv!r}))"
+        result = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
+        )
+        assert result.returncode == 0, result.stderr
+        info = json.loads((tmp_path / f"out-{on}" / "run.json").read_text())
+        if on:
+            assert info["compilation_cache"] == str(cache)
+            stored = [p.name for p in cache.iterdir()]
+            assert any(name.startswith("jit__simulate_core") for name in stored), stored
+        else:
+            assert info["compilation_cache"] == "off" and not cache.exists()
+
+
 # --- mechanisms from the config file --------------------------------------------------------------
 
 EXAMPLES = Path(__file__).parents[1] / "examples"

@@ -335,8 +335,13 @@ def test_device_count_flag(monkeypatch):
 
 @pytest.mark.slow
 def test_two_cpu_devices_in_a_fresh_process(tmp_path):
-    """A fresh process gets --devices 2 as two CPU devices and splits the chunk over them."""
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    """A fresh process gets --devices 2 as two CPU devices and splits the chunk over them; its
+    compiled solves go to the persistent compilation cache (they make no host callbacks, which
+    JAX would refuse to store)."""
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAX_COMPILATION_CACHE_DIR")
+    }
+    env["JAXCLEAR_CACHE_DIR"] = str(tmp_path / "cache")
     out = tmp_path / "mc"
     argv = montecarlo_argv(out, "--quiet", samples="4")
     argv[argv.index("--devices") + 1] = "2"
@@ -348,3 +353,6 @@ def test_two_cpu_devices_in_a_fresh_process(tmp_path):
     info = json.loads((out / "summary.json").read_text())
     assert (info["devices"], info["succeeded"]) == (2, 4)
     assert info["device_flag"] == f"{DEVICE_COUNT_FLAG}=2"
+    assert info["compilation_cache"] == env["JAXCLEAR_CACHE_DIR"]
+    stored = [p.name for p in (tmp_path / "cache").iterdir()]
+    assert any(name.startswith("jit__vmap_chunk") for name in stored), stored

@@ -7,6 +7,7 @@ built or assembled, output folder that cannot be written). Errors are one line o
 """
 
 import os
+from pathlib import Path
 
 PROG = "jaxclear"
 EXIT_FAILURE = 1
@@ -56,3 +57,72 @@ def apply_fast_compile(on: bool) -> str:
         return "off"
     os.environ["XLA_FLAGS"] = f"{flags} {FAST_COMPILE_FLAG}".strip()
     return "on"
+
+
+CACHE_DIR_ENV = "JAXCLEAR_CACHE_DIR"
+"""Environment variable naming the folder of the command's persistent compilation cache (default
+``$XDG_CACHE_HOME/jaxclear/xla``, else ``~/.cache/jaxclear/xla``)."""
+
+
+def compilation_cache_dir() -> Path:
+    """The command's compilation-cache folder (``CACHE_DIR_ENV``, else the user cache folder)."""
+    if os.environ.get(CACHE_DIR_ENV):
+        return Path(os.environ[CACHE_DIR_ENV]).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "jaxclear" / "xla"
+
+
+def apply_compilation_cache(on: bool) -> str:
+    """Turn on JAX's persistent compilation cache for this process (``[solver] compilation_cache``).
+
+    Compiled solves are written to ``compilation_cache_dir()`` and read back by later runs with
+    the same mechanism topology, solver settings, output grid, XLA flags and JAX version, which
+    then skip XLA's compilation (tracing and lowering remain). JAX does not store executables
+    that call back into Python, and the compiled solve has two such calls: diffrax's checks that
+    the output times increase and lie in [t0, t1], which hold by construction here (``simulate``
+    makes them from t0 and t1). Equinox's runtime checks are therefore switched to NaN mode
+    (``EQX_ON_ERROR=nan``: a failed check gives NaN instead of raising) for the command;
+    ``restore_error_mode`` undoes it. Failures of the solve itself are data (``Trajectory.result``),
+    unaffected. A user's own ``JAX_COMPILATION_CACHE_DIR`` wins over ours.
+
+    Must run before the process's first compilation: JAX decides once whether to use the cache.
+
+    Returns:
+        For run.json: the folder, ``"off"``, or ``"off (...)"`` when the folder cannot be made.
+    """
+    if not on:
+        return "off"
+    import jax
+
+    user = jax.config.jax_compilation_cache_dir  # pyright: ignore[reportAttributeAccessIssue]
+    if user:
+        folder = str(user)
+    else:
+        path = compilation_cache_dir()
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            return f"off (cannot create {str(path)!r}: {e.strerror or e})"
+        folder = str(path)
+        jax.config.update("jax_compilation_cache_dir", folder)
+    _set_error_mode("nan")
+    return folder
+
+
+_saved_error_mode: list[str] = []
+
+
+def _set_error_mode(mode: str) -> None:
+    import equinox._errors as errors  # the module global equinox reads at trace time
+
+    if not _saved_error_mode:
+        _saved_error_mode.append(getattr(errors, "EQX_ON_ERROR"))
+    setattr(errors, "EQX_ON_ERROR", mode)
+
+
+def restore_error_mode() -> None:
+    """Undo ``apply_compilation_cache``'s error mode (for ``jaxclear.cli.main`` called in-process)."""
+    if _saved_error_mode:
+        import equinox._errors as errors
+
+        setattr(errors, "EQX_ON_ERROR", _saved_error_mode.pop())

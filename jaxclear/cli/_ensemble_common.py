@@ -25,7 +25,14 @@ from ..analysis._ensemble import (
     MANIFEST,
     EnsembleError,
 )
-from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
+from ._common import (
+    PROG,
+    RunError,
+    UsageError,
+    apply_compilation_cache,
+    apply_fast_compile,
+    one_line,
+)
 from ._config import Settings, resolve_settings
 from ._mechanism_config import build_mechanism
 from ._run import grid, kept_start, prepare_output, solver_for
@@ -109,6 +116,7 @@ class Prepared:
             the config or an option sets it, else the engine's ``DEFAULT_CONTINUOUS_FRACTION``
             (2 % of a crank period; ``jaxclear run``'s default is 5 %).
         fast_compile, device_flag: what was done to ``XLA_FLAGS``.
+        compilation_cache: the persistent compilation cache's folder, or ``"off"``.
     """
 
     settings: Settings
@@ -120,6 +128,7 @@ class Prepared:
     continuous_fraction: float
     fast_compile: str
     device_flag: str
+    compilation_cache: str = "off"
 
 
 def prepare(args: argparse.Namespace, command: str) -> Prepared:
@@ -136,6 +145,7 @@ def prepare(args: argparse.Namespace, command: str) -> Prepared:
     if args.devices is not None and args.devices < 1:
         raise UsageError(f"--devices {args.devices}: give 1 or more")
     fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX starts
+    compilation_cache = apply_compilation_cache(config["solver"]["compilation_cache"])
     device_flag = apply_device_count(args.devices)
     mechanism = build_mechanism(settings)
     if config["simulation"]["start"] == "wall" and mechanism.clearance_joints:
@@ -163,6 +173,7 @@ def prepare(args: argparse.Namespace, command: str) -> Prepared:
         solver=solver_for(settings, mechanism),
         continuous_fraction=float(fraction),
         fast_compile=fast_compile,
+        compilation_cache=compilation_cache,
         device_flag=device_flag,
     )
 
@@ -306,6 +317,7 @@ def base_info(prepared: Prepared, outcome: Outcome, argv: list[str], fmt: int) -
         "jax_backend": jax.default_backend(),
         "device_flag": prepared.device_flag,
         "fast_compile": prepared.fast_compile,
+        "compilation_cache": prepared.compilation_cache,
         "chunk_size": outcome.chunk_size,
         "already_finished": outcome.already_finished,
         "run_now": outcome.run_now,

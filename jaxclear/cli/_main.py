@@ -12,7 +12,15 @@ import sys
 from typing import NoReturn
 
 from . import _fit, _montecarlo, _run, _sweep
-from ._common import EXIT_FAILURE, EXIT_USAGE, PROG, RunError, UsageError, one_line
+from ._common import (
+    EXIT_FAILURE,
+    EXIT_USAGE,
+    PROG,
+    RunError,
+    UsageError,
+    one_line,
+    restore_error_mode,
+)
 from ._ensemble_common import ENSEMBLE_FLAGS
 from ._settings import all_flags
 
@@ -83,7 +91,10 @@ def main(argv: list[str] | None = None) -> int:
             args = build_parser().parse_args(argv)
         except UsageError as e:
             raise UsageError(_usage_hint(str(e), argv)) from None
-        return SUBCOMMANDS[args.command].run(args, argv)
+        try:
+            return SUBCOMMANDS[args.command].run(args, argv)
+        finally:
+            restore_error_mode()
     except UsageError as e:
         _fail(str(e), EXIT_USAGE)
     except RunError as e:

@@ -20,7 +20,14 @@ import jaxclear
 
 from .. import _outputs
 from .._startup import ideal_mechanism, wall_start
-from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
+from ._common import (
+    PROG,
+    RunError,
+    UsageError,
+    apply_compilation_cache,
+    apply_fast_compile,
+    one_line,
+)
 from ._config import Settings, resolve_settings
 from ._mechanism_config import build_mechanism
 from ._settings import (
@@ -282,6 +289,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     fast_compile = apply_fast_compile(
         config["solver"]["fast_compile"]
     )  # before JAX's backend starts
+    compilation_cache = apply_compilation_cache(config["solver"]["compilation_cache"])
     mechanism = build_mechanism(settings)
     ideal = ideal_mechanism(mechanism)  # clearance joints made ideal: the plots' reference
     names = [j.name for j in mechanism.clearance_joints]
@@ -356,6 +364,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         compile_time_s=compile_time,
         run_time_s=run_time,
         fast_compile=fast_compile,
+        compilation_cache=compilation_cache,
         timing=(
             "compile_time_s: wall time of a warm-up simulate call over "
             f"{WARMUP_FRACTION:g} of the horizon with identical shapes and settings (tracing, XLA "

@@ -639,6 +639,16 @@ SETTINGS: tuple[Setting, ...] = (
         "measured 5.4 -> 2.2 s XLA time for about a tenth longer runs (Tsit5, three joints)",
         "--fast-compile",
     ),
+    Setting(
+        "solver",
+        "compilation_cache",
+        bool,
+        True,
+        "",
+        "keep compiled solves in a persistent cache (folder: $JAXCLEAR_CACHE_DIR, else "
+        "~/.cache/jaxclear/xla), so a later run of the same configuration skips XLA compilation",
+        "--compilation-cache",
+    ),
     # [output]
     Setting(
         "output",
