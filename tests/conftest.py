@@ -6,6 +6,7 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 LONGEST_FIRST = (
     "test_transforms.py",
     "test_fast_paths.py",
+    "test_notebooks_studies.py",
     "test_notebooks.py",
     "test_identify.py",
     "test_ensemble.py",
