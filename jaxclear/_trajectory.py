@@ -120,6 +120,29 @@ class Trajectory(eqx.Module):
     def joint_force_magnitude(self, joint: str) -> Float[Array, "*batch N"]:
         return jnp.linalg.norm(self.reactions[joint], axis=-1)
 
+    def member(self, index: int) -> "Trajectory":
+        """Member ``index`` of a batched trajectory (``simulate_batch``, or ``jax.vmap`` of
+        ``simulate``) as a single trajectory, its mechanism included: the analysis and plot
+        functions that take one run (``contact_events``, ``plot_mode_timeline``, ...) accept it.
+
+        Raises:
+            ValueError: the trajectory is not batched (one leading batch axis).
+            IndexError: ``index`` outside the batch.
+        """
+        shape = np.shape(self.t_final)
+        if len(shape) != 1:
+            raise ValueError(
+                f"member() takes a trajectory with one batch axis; this one has shape {shape} "
+                "(a single run has ())."
+            )
+        if not -shape[0] <= index < shape[0]:
+            raise IndexError(f"index {index} is outside the batch of {shape[0]} members.")
+
+        def take(x):
+            return x[index] if np.ndim(x) > 0 else x
+
+        return jax.tree_util.tree_map(take, self)
+
     def truncated(self) -> "Trajectory":
         """The saved instants the solver actually reached (t <= t_final), e.g. after a failure.
 

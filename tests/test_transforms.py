@@ -112,13 +112,24 @@ def test_batch_matches_loop(batched):
     for k in range(3):
         p = {name: float(v[k]) for name, v in BATCH.items()}
         single = jaxclear.simulate(_build(p), T1, num_points=NUM_POINTS, solver="fast")
-        member = jax.tree_util.tree_map(lambda x: x[k], _compared(batched))
+        member = _compared(batched.member(k))
         err = float(np.max(np.abs(np.asarray(member["qdd"]) - np.asarray(single.qdd))))
         print(
             f"member {k} {p}: steps batch {int(batched.num_steps[k])} / loop {int(single.num_steps)}, max |Δq̈| = {err:.3g}"
         )
         assert int(batched.num_steps[k]) == int(single.num_steps)
         assert _close(member, _compared(single))
+
+
+def test_member_is_a_single_trajectory(batched):
+    member = batched.member(-1)
+    assert np.shape(member.t_final) == () and member.q.shape == batched.q.shape[1:]
+    assert float(member.mechanism.driver.speed) == pytest.approx(BATCH["rpm"][-1] * np.pi / 30)
+    assert jaxclear.analysis.statistics(member)["peak_slider_acceleration"] > 0
+    with pytest.raises(IndexError, match="outside the batch of 3"):
+        batched.member(3)
+    with pytest.raises(ValueError, match="one batch axis"):
+        member.member(0)
 
 
 def test_batch_members_differ_physically(batched):

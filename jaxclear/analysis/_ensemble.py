@@ -221,6 +221,9 @@ def _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0
         "input_error": traj.input_error,
         "t_final": traj.t_final,
     }
+    speed = None if m.driver is None else m.driver.constant_speed
+    if speed is not None:  # the member's own crank period sets its impact/continuous threshold
+        outcome["speed"] = jnp.asarray(speed, dtype=float)
     return stats, contacts, outcome
 
 
@@ -474,8 +477,8 @@ def run_ensemble(
             mechanism (clearance joints made ideal, same member values) is reported as
             ``<signal>_deviation``; default ``slider_a`` and the input torque where present,
             ``()`` for none (one ideal solve per member less).
-        continuous_fraction: contact lasting at least this fraction of the crank period counts as
-            continuous contact, shorter as an impact (the contact-mode statistics).
+        continuous_fraction: contact lasting at least this fraction of the member's crank period
+            counts as continuous contact, shorter as an impact (the contact-mode statistics).
         contact_events: room for this many contacts per clearance joint and member (default
             ``EVENTS_PER_REVOLUTION`` per crank revolution of the horizon, at least 256). The
             contacts are located from the solver's steps (``jaxclear.analysis.contact_events``);
@@ -700,6 +703,8 @@ def _record(result, i, row, stats, contacts, outcome, ts, start, period, fractio
         result.statistics[k][i] = float(v[row])
     joints = list(contacts["penetration"])
     if joints:
+        if "speed" in outcome and float(outcome["speed"][row]) != 0.0:
+            period = 2.0 * math.pi / abs(float(outcome["speed"][row]))  # e.g. rpm swept
         modes = _member_modes(
             contacts, row, joints, ts, start, float(outcome["t_final"][row]), period, fraction
         )
