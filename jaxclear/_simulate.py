@@ -507,6 +507,7 @@ def simulate_batch(
     adjoint: "str | diffrax.AbstractAdjoint" = "auto",
     statistics_start: ArrayLike | None = None,
     extremes: bool = True,
+    contact_events: int = 0,
 ) -> Trajectory:
     """Simulate many variants of a mechanism in one vectorised solve: ``jax.vmap`` of ``simulate``.
 
@@ -516,10 +517,11 @@ def simulate_batch(
     Args:
         build: ``build(p) -> Mechanism`` for one member's parameters ``p`` (a pytree of arrays).
         parameters: pytree whose leaves have a leading batch axis.
-        t1, t0, ts, num_points, solver, adjoint, statistics_start, extremes: as in ``simulate``.
+        t1, t0, ts, num_points, solver, adjoint, statistics_start, extremes, contact_events: as in
+            ``simulate``.
 
     Returns:
-        A batched ``Trajectory``. Members whose solve fails do not raise: check ``traj.succeeded``
+        A batched ``Trajectory`` (``traj.member(k)`` is member k as a single one). Members whose solve fails do not raise: check ``traj.succeeded``
         and ``traj.t_final`` per member.
 
     Raises:
@@ -544,6 +546,7 @@ def simulate_batch(
             statistics_start=statistics_start,
             extremes=extremes,
             throw=False,
+            contact_events=contact_events,
         )
 
     traj = eqx.filter_vmap(one)(parameters)
