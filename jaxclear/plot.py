@@ -406,7 +406,7 @@ def plot_mode_timeline(
         impact = e["mode"] == IMPACT
         continuous = e["mode"] == CONTINUOUS
         bars = [
-            (x_of(a), x_of(b) - x_of(a))
+            (float(x_of(a)), float(x_of(b) - x_of(a)))
             for a, b in zip(e["onset"][continuous], e["end"][continuous])
         ]
         ax.broken_barh(bars, (y - 0.3, 0.6), **MODE_STYLE["continuous"])

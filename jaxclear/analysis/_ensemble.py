@@ -213,6 +213,7 @@ def _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0
     contacts = {"penetration": {j: traj.clearance[j]["penetration"] for j in traj.clearance}}
     if mechanism.clearance_joints:
         x = traj.extremes
+        assert x is not None  # simulate's default extremes=True
         contacts.update(events=x.events, count=x.event_count, ongoing=x.contact_onset)
     outcome = {
         "num_steps": traj.num_steps,
