@@ -316,7 +316,8 @@ def bifurcation_points(
     Args:
         mechanism: a ``Mechanism`` with a constant-speed driver.
         name: the parameter (``jaxclear.parameter_names``), e.g. ``"rpm"``, ``"B.clearance"``,
-            ``"B.restitution"``, ``"B.friction_coefficient"``.
+            ``"B.restitution"``, ``"B.friction_coefficient"`` (Coulomb-type laws; LuGre has
+            ``"B.kinetic_friction"``, ``"B.static_friction"``, ...).
         values: its values (N,), SI units (``rpm`` in rev/min).
         revolutions: section points per value.
         t0, skip_revolutions, signals, solver, phase: as in ``poincare_section``.
