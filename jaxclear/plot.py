@@ -827,23 +827,14 @@ def plot_sweep(result, names: Sequence[str] | None = None) -> Figure:
         The ``Figure``.
     """
     names = _statistic_names(result, names)
-    if len(result.names) != 1:
-        raise ValueError(
-            f"plot_sweep needs an ensemble of one parameter, got {', '.join(result.names)}; use "
-            "plot_ensemble_scatter."
-        )
-    par_axis = parameter_axis(result.names[0])
-    x = np.asarray(result.values, dtype=float)[:, 0] * par_axis[2]
-    order = np.argsort(x, kind="stable")
+    par_axis, x, keep, log = _sweep_x(result)
     ok = np.asarray(result.succeeded)
-    log = bool(np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min())
     fig, axes = _grid(len(names), 3)
     for k, (ax, name) in enumerate(zip(axes, names, strict=True)):
         stat_axis = statistic_axis(name)
         if log:
             ax.set_xscale("log")
         y = np.asarray(result.statistics[name], dtype=float) * stat_axis[2]
-        keep = order[ok[order]]
         ax.plot(x[keep], y[keep], "o-", color="C0", markersize=3.5, linewidth=1.2)
         _mark_failed(ax, x[~ok], "failed" if k == 0 else None)
         _panel(ax, stat_axis, "y")
@@ -896,15 +887,19 @@ others are drawn together as "other"."""
 def _sweep_x(result):
     if len(result.names) != 1:
         raise ValueError(
-            f"needs an ensemble of one parameter, got {', '.join(result.names)}; use "
+            f"a sweep plot needs an ensemble of one parameter, got {', '.join(result.names)}; use "
             "plot_ensemble_scatter."
         )
     par_axis = parameter_axis(result.names[0])
     x = np.asarray(result.values, dtype=float)[:, 0] * par_axis[2]
     order = np.argsort(x, kind="stable")
     keep = order[np.asarray(result.succeeded)[order]]
-    log = bool(np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min())
-    return par_axis, x, keep, log
+    return par_axis, x, keep, _log_axis(x)
+
+
+def _log_axis(x: np.ndarray) -> bool:
+    """Positive values spanning at least ``SWEEP_LOG_RATIO``: drawn on a log axis."""
+    return bool(np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min())
 
 
 def plot_sweep_modes(result) -> Figure:
@@ -984,7 +979,7 @@ def plot_bifurcation(diagram, signals: Sequence[str] | None = None) -> Figure:
         )
     par_axis = parameter_axis(diagram.parameter)
     values = np.asarray(diagram.values, dtype=float) * par_axis[2]
-    log = bool(np.all(values > 0) and values.max() >= SWEEP_LOG_RATIO * values.min())
+    log = _log_axis(values)
     fig, axes = _grid(len(names), 2, width=4.2, height=3.0)
     revolutions = np.asarray(diagram.times).shape[-1]
     for ax, name in zip(axes, names, strict=True):
@@ -1042,7 +1037,7 @@ def plot_lyapunov_sweep(sweep) -> Figure:
     ax.axhline(0.0, color="k", linewidth=0.8, linestyle="--", label="λ = 0 (chaos above)")
     if (~ok).any():
         _mark_failed(ax, x[~ok], "failed")
-    if np.all(x > 0) and x.max() >= SWEEP_LOG_RATIO * x.min():
+    if _log_axis(x):
         ax.set_xscale("log")
     ax.set_xlabel(_label(par_axis))
     ax.set_ylabel("Largest Lyapunov exponent λ (1/s)")

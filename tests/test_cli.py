@@ -667,7 +667,7 @@ def test_compilation_cache_stores_the_solve(tmp_path):
         if on:
             assert info["compilation_cache"] == str(cache)
             stored = [p.name for p in cache.iterdir()]
-            assert any(name.startswith("jit__simulate_core") for name in stored), stored
+            assert any(name.startswith("jit_") and "simulate" in name for name in stored), stored
         else:
             assert info["compilation_cache"] == "off" and not cache.exists()
 

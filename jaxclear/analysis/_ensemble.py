@@ -48,7 +48,7 @@ from .._simulate import simulate
 from .._solver import SolverConfig, solver_config
 from .._startup import ideal_mechanism
 from .._trajectory import INPUT_ERRORS
-from ..model import Mechanism, parameter_info, with_parameters
+from ..model import Mechanism, parameter_info, parameter_names, with_parameters
 from ._modes import (
     CONTINUOUS,
     FREE,
@@ -238,6 +238,24 @@ def chunk_size_for(chunk_size: int, devices) -> int:
     """``chunk_size`` rounded up to a multiple of the number of devices."""
     per = len(devices) if devices else 1
     return -(-int(chunk_size) // per) * per
+
+
+def swept_values(mechanism: Mechanism, name: str, values) -> np.ndarray:
+    """Check a one-parameter sweep's arguments (``bifurcation_points``, ``lyapunov_sweep``): a
+    known parameter name and a non-empty 1-D array of finite values, returned as floats.
+
+    Raises:
+        ValueError: naming the parameter and what is allowed.
+    """
+    known = parameter_names(mechanism)
+    if name not in known:
+        raise ValueError(
+            f"name {name!r} is not a parameter of this mechanism; choose among {known}."
+        )
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
+        raise ValueError(f"values must be a non-empty 1-D array of finite numbers, got {values!r}.")
+    return values
 
 
 def map_members(

@@ -29,8 +29,8 @@ from .._simulate import assemble, initial_state, simulate
 from .._solver import SolverConfig, recommended_solver, solver_config
 from ..dynamics._assembly import assemble_state
 from ..dynamics._constraints import constraint_velocity, constraints
-from ..model import Mechanism, parameter_names, with_parameters
-from ._ensemble import DEFAULT_CHUNK, map_members
+from ..model import Mechanism, with_parameters
+from ._ensemble import DEFAULT_CHUNK, map_members, swept_values
 
 METHODS = ("tangent", "two_trajectory")
 
@@ -567,14 +567,7 @@ def lyapunov_sweep(
         ValueError: an unknown ``name``, ``values`` not 1-D and finite, no ``interval`` without a
             constant-speed driver, and the errors of ``largest_lyapunov``'s arguments.
     """
-    known = parameter_names(mechanism)
-    if name not in known:
-        raise ValueError(
-            f"name {name!r} is not a parameter of this mechanism; choose among {known}."
-        )
-    values = np.asarray(values, dtype=float)
-    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
-        raise ValueError(f"values must be a non-empty 1-D array of finite numbers, got {values!r}.")
+    values = swept_values(mechanism, name, values)
     if interval is None:
         speed = None if mechanism.driver is None else mechanism.driver.constant_speed
         if speed is None or not is_concrete(speed) or float(speed) == 0.0:

@@ -21,8 +21,8 @@ from .._checks import is_concrete
 from .._signals import signal_names, signals
 from .._simulate import simulate
 from .._solver import SolverConfig, solver_config
-from ..model import Mechanism, parameter_names, with_parameters
-from ._ensemble import DEFAULT_CHUNK, map_members
+from ..model import Mechanism, with_parameters
+from ._ensemble import DEFAULT_CHUNK, map_members, swept_values
 
 DEFAULT_SKIP_REVOLUTIONS = 1
 """Start-up revolutions left out of a section by default: the journals start centred with the
@@ -332,14 +332,7 @@ def bifurcation_points(
         ValueError: an unknown ``name`` or ``signals``, ``values`` not 1-D and finite, and the
             errors of ``poincare_section``'s arguments.
     """
-    known = parameter_names(mechanism)
-    if name not in known:
-        raise ValueError(
-            f"name {name!r} is not a parameter of this mechanism; choose among {known}."
-        )
-    values = np.asarray(values, dtype=float)
-    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
-        raise ValueError(f"values must be a non-empty 1-D array of finite numbers, got {values!r}.")
+    values = swept_values(mechanism, name, values)
     names = _check_names(
         mechanism, default_section_signals(mechanism) if signals is None else signals, "signals"
     )
