@@ -17,7 +17,8 @@ takes 29 steps per revolution (12° of crank angle), and the input-torque minimu
 −130.6 N m from the step ends, −137.1 N m with the parabola, against −138.52 N m
 (tests/test_statistics.py).
 
-The input-torque mean square is integrated by the trapezoidal rule over the same steps.
+The mean squares of the input torque and of each body's acceleration are integrated by the
+trapezoidal rule over the same steps.
 
 Contact events (optional, ``max_events > 0``): each clearance joint's contact onsets and ends,
 located where the penetration δ changes sign between two consecutive samples (step midpoints and
@@ -67,6 +68,8 @@ class Extremes(eqx.Module):
         body_acceleration_max: per body, peak |r̈| of its centre of mass (bodies,), m/s².
         input_torque_min, input_torque_max: driver torque extremes, N m.
         input_torque_square_integral: ∫ τ² dt over the window (trapezoidal rule over the steps), N² m² s.
+        body_acceleration_square_integral: per body, ∫ |r̈|² dt over the window (same rule),
+            m² s⁻³.
         normal_force_max: {clearance joint: peak F_N, N}.
         penetration_max: {clearance joint: peak δ, m}.
         constraint_violation_max: peak max |Φ|, m or rad.
@@ -88,6 +91,7 @@ class Extremes(eqx.Module):
     input_torque_min: Float[Array, ""]
     input_torque_max: Float[Array, ""]
     input_torque_square_integral: Float[Array, ""]
+    body_acceleration_square_integral: Float[Array, " b"]
     normal_force_max: dict[str, Float[Array, ""]]
     penetration_max: dict[str, Float[Array, ""]]
     constraint_violation_max: Float[Array, ""]
@@ -101,6 +105,11 @@ class Extremes(eqx.Module):
     def input_torque_rms(self) -> Float[Array, ""]:
         """RMS of the driver torque over the window, N m (nan if the window is empty)."""
         return jnp.sqrt(self.input_torque_square_integral / self.duration)
+
+    @property
+    def body_acceleration_rms(self) -> Float[Array, " b"]:
+        """RMS of each body's centre-of-mass acceleration magnitude over the window, m/s²."""
+        return jnp.sqrt(self.body_acceleration_square_integral / self.duration[..., None])
 
     @classmethod
     def first(cls, start, t, obs: Observation, max_events: int = 0) -> "Extremes":
@@ -119,6 +128,7 @@ class Extremes(eqx.Module):
             input_torque_min=pos(obs.input_torque),
             input_torque_max=neg(obs.input_torque),
             input_torque_square_integral=jnp.zeros((), dtype=float),
+            body_acceleration_square_integral=jnp.zeros_like(obs.body_accelerations),
             normal_force_max={k: neg(v) for k, v in obs.normal_force.items()},
             penetration_max={k: neg(v) for k, v in obs.penetration.items()},
             constraint_violation_max=neg(obs.constraint_violation),
@@ -184,6 +194,7 @@ class Extremes(eqx.Module):
         new = jax.tree_util.tree_map(lambda y: jnp.where(inside, y, jnp.nan), obs)
         width = jnp.maximum(t - jnp.maximum(t1, self.start), 0.0)
         square = 0.5 * (last.input_torque**2 + obs.input_torque**2)
+        body_square = 0.5 * (last.body_accelerations**2 + obs.body_accelerations**2)
 
         def both(fn, old, attribute):
             return fn(fn(old, attribute(new)), attribute(between))
@@ -200,6 +211,8 @@ class Extremes(eqx.Module):
             input_torque_min=both(lo, self.input_torque_min, lambda o: o.input_torque),
             input_torque_max=both(hi, self.input_torque_max, lambda o: o.input_torque),
             input_torque_square_integral=self.input_torque_square_integral + width * square,
+            body_acceleration_square_integral=self.body_acceleration_square_integral
+            + width * body_square,
             normal_force_max={
                 k: both(hi, v, lambda o, k=k: o.normal_force[k])
                 for k, v in self.normal_force_max.items()

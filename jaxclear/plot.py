@@ -625,6 +625,8 @@ def statistic_axis(name: str) -> tuple[str, str, float]:
         return f"{name[: -len('_peak_penetration')]} peak penetration", "µm", 1e6
     if name.startswith("peak_") and name.endswith("_acceleration"):
         return f"Peak {name[5 : -len('_acceleration')]} acceleration", "m/s²", 1.0
+    if name.startswith("rms_") and name.endswith("_acceleration"):
+        return f"RMS {name[4 : -len('_acceleration')]} acceleration", "m/s²", 1.0
     for suffix, what in (("_torque_rms", "RMS"), ("_torque_min", "min"), ("_torque_max", "max")):
         if name.endswith(suffix):
             return f"{name[: -len(suffix)].capitalize()} torque {what}", "N·m", 1.0

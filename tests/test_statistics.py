@@ -61,11 +61,13 @@ def test_named_statistics(runs):
         "B_peak_normal_force",
         "B_peak_penetration",
         "peak_slider_acceleration",
+        "rms_slider_acceleration",
         "crank_torque_rms",
         "crank_torque_min",
         "crank_torque_max",
     ):
         assert np.isfinite(float(stats[name])), name
+    assert 0 < float(stats["rms_slider_acceleration"]) < float(stats["peak_slider_acceleration"])
     assert float(stats["crank_torque_min"]) < 0 < float(stats["crank_torque_max"])
     assert float(stats["statistics_duration"]) == pytest.approx(PERIOD, rel=1e-12)
 
@@ -94,6 +96,9 @@ def test_ideal_extremes_match_the_reference():
     torque = np.asarray(traj.input_torque)
     grid_rms = np.sqrt(np.mean(torque[:-1] ** 2))
     assert float(stats["crank_torque_rms"]) == pytest.approx(grid_rms, rel=1e-2)
+    slider = np.asarray(traj.accelerations("slider"))[:, 0]  # the slider moves along x only
+    grid_rms = np.sqrt(np.mean(slider[:-1] ** 2))
+    assert float(stats["rms_slider_acceleration"]) == pytest.approx(grid_rms, rel=1e-2)
 
 
 def test_statistics_window():

@@ -20,6 +20,8 @@ def statistics(traj) -> dict[str, Float[Array, "..."]]:
         ``{J}_peak_normal_force`` (N) and ``{J}_peak_penetration`` (m) for each clearance joint J;
         ``peak_{body}_acceleration`` (m/s²): peak magnitude of each body's centre-of-mass
         acceleration (for the slider–crank's slider, its peak |ẍ|);
+        ``rms_{body}_acceleration`` (m/s²): its RMS over the window (trapezoidal rule over the
+        steps, as the torque's);
         ``{body}_torque_min``, ``{body}_torque_max``, ``{body}_torque_rms`` (N m): the input torque
         on the driven body (``crank_torque_*`` for the benchmark mechanisms), if there is a driver;
         ``max_constraint_violation`` (m or rad): peak max |Φ| of the ideal joints;
@@ -43,6 +45,7 @@ def statistics(traj) -> dict[str, Float[Array, "..."]]:
         out[f"{name}_peak_penetration"] = x.penetration_max[name]
     for k, body in enumerate(mechanism.body_names):
         out[f"peak_{body}_acceleration"] = x.body_acceleration_max[..., k]
+        out[f"rms_{body}_acceleration"] = x.body_acceleration_rms[..., k]
     if mechanism.driver is not None:
         body = mechanism.driver.body
         out[f"{body}_torque_min"] = x.input_torque_min
