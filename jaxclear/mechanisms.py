@@ -206,8 +206,16 @@ def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tup
         spec = {name: {} for name in spec}
     unknown = set(spec) - set(revolute)
     if unknown:
+        joined = [u for u in sorted(unknown) if len(u) > 1 and all(c in revolute for c in u)]
+        hint = (
+            f" (several joints are separated by commas: {','.join(joined[0])!r} or "
+            f"{tuple(joined[0])!r})"
+            if joined
+            else ""
+        )
         raise ModelError(
-            f"{owner}: clearance joints must be among {', '.join(revolute)}; got {sorted(unknown)}."
+            f"{owner}: clearance joints must be among {', '.join(revolute)}; got "
+            f"{sorted(unknown)}{hint}."
         )
     for where, options in [("", shared)] + [
         (f" of joint {name!r}", spec[name] or {}) for name in spec

@@ -61,6 +61,15 @@ def test_nan_parameter_set_after_construction_is_named_by_simulate():
         jaxclear.simulate(bad, T1, num_points=NUM_POINTS, solver="fast")
 
 
+def test_unknown_clearance_joint_says_how_to_list_several():
+    with pytest.raises(jaxclear.ModelError, match=r"got \['X'\]\.$"):
+        slider_crank(clearance_joints="X")
+    with pytest.raises(
+        jaxclear.ModelError, match=r"separated by commas: 'O,A,B' or \('O', 'A', 'B'\)"
+    ):
+        slider_crank(clearance_joints="OAB")
+
+
 def test_unknown_solver_name():
     with pytest.raises(ValueError, match=r"solver 'euler' is unknown; choose 'auto', a preset"):
         jaxclear.simulate(slider_crank(), T1, solver="euler")
