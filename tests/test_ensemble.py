@@ -252,3 +252,24 @@ def test_chunks_spread_over_two_devices_give_the_same_members(ensemble):
         out["force"], ensemble.statistics["B_peak_normal_force"][:3], rtol=SAME
     )
     np.testing.assert_allclose(out["steps"], ensemble.num_steps[:3], rtol=0.05)
+
+
+def test_modes_use_each_members_crank_period(mechanism):
+    """The impact/continuous threshold is a fraction of each member's own crank period: with the
+    fraction chosen so that a contact of the 4000 rpm member is shorter than the fraction of its
+    period but longer than that of the nominal 5000 rpm, the member counts it as an impact, as its
+    single run does."""
+    values = {k: v[:CHUNK] for k, v in VALUES.items()}  # member 1: 4000 rpm
+    member = jaxclear.with_parameters(mechanism, {k: v[1] for k, v in VALUES.items()})
+    single = jaxclear.simulate(
+        member, T1, num_points=POINTS, statistics_start=START, solver=TIGHT, contact_events=EVENTS
+    )
+    own, nominal = 60.0 / VALUES["rpm"][1], 60.0 / 5000.0
+    durations = jaxclear.analysis.contact_events(single)["B"]["duration"]
+    fraction = 1.1 * float(np.max(durations)) / own  # between duration/own and duration/nominal
+    assert fraction * nominal <= np.max(durations) < fraction * own
+    result = _run(mechanism, values, continuous_fraction=fraction, order="index")
+    shares = jaxclear.analysis.event_mode_shares(single, continuous_fraction=fraction)
+    assert shares["joints"]["B"]["continuous_contacts"] == 0
+    assert result.statistics["B_continuous_contacts"][1] == 0
+    assert result.statistics["B_impacts"][1] == shares["joints"]["B"]["impacts"]
