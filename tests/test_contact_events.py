@@ -160,3 +160,21 @@ def test_mode_timeline_draws_every_located_contact(first_contacts):
     assert sum(len(c.get_paths()) for c in bars) == np.sum(e["mode"] == CONTINUOUS)
     assert ax.get_xlabel() == "Crank angle (°)"
     assert [t.get_text() for t in ax.get_yticklabels()] == ["joint B"]
+
+
+def test_grid_contacts_on_a_constructed_signal():
+    """The saved-grid fallback (an overflowing event buffer): runs of δ > 0 with known extents;
+    ``contact_modes`` labels the same runs."""
+    from jaxclear.analysis._modes import grid_contacts
+
+    t = np.arange(20) * 1e-4  # s
+    delta = np.full(20, -1e-6)
+    delta[2] = delta[8:15] = 1e-6  # one sample (impact), seven samples (continuous)
+    runs = grid_contacts(t, delta, minimum_duration=5e-4)
+    np.testing.assert_allclose(runs["onset"], [2e-4, 8e-4])
+    np.testing.assert_allclose(runs["duration"], [1e-4, 7e-4])
+    np.testing.assert_allclose(runs["end"], [3e-4, 15e-4])
+    assert list(runs["mode"]) == [IMPACT, CONTINUOUS]
+    labels = contact_modes(t, delta, 5e-4)
+    assert labels[2] == IMPACT and np.all(labels[8:15] == CONTINUOUS)
+    assert np.sum(labels > 0) == 8

@@ -55,6 +55,7 @@ from ._modes import (
     IMPACT,
     MODE_NAMES,
     all_combinations,
+    grid_contacts,
     located_contacts,
     shares_of_contacts,
 )
@@ -72,7 +73,9 @@ NON_NEGATIVE = frozenset({"friction_coefficient", "viscous_friction", "damping",
 """Fields whose admissible range includes its lower bound 0 (``ParameterInfo.domain`` is open)."""
 FORMAT = 2  # 2: contact modes from located events, counts and combination shares
 EVENTS_PER_REVOLUTION = 128
-"""Default room for contacts per clearance joint and crank revolution (``jaxclear run``'s too)."""
+"""Default room for contacts per clearance joint and crank revolution (at least 256 in all), here
+and in ``jaxclear run``: the default run has 3–7 contacts per joint and revolution; where the
+buffer overflows, the modes come from the saved grid (``grid_contacts``)."""
 
 
 @dataclasses.dataclass
@@ -754,21 +757,10 @@ def _member_modes(contacts, row, joints, ts, start, t_end, period, fraction) -> 
         }
     else:  # contacts from the saved grid: runs of positive penetration
         keep = ts >= start
-        t = ts[keep]
-        dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-        events = {}
-        for j in joints:
-            inside = np.asarray(contacts["penetration"][j][row])[keep] > 0
-            edges = np.diff(np.concatenate([[0], inside.astype(int), [0]]))
-            first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
-            onset, end = t[first], np.minimum(t[last] + dt, t[-1])
-            duration = t[last] - t[first] + dt
-            events[j] = {
-                "onset": onset,
-                "end": end,
-                "duration": duration,
-                "mode": np.where(duration >= threshold, CONTINUOUS, IMPACT),
-            }
+        events = {
+            j: grid_contacts(ts[keep], np.asarray(contacts["penetration"][j][row])[keep], threshold)
+            for j in joints
+        }
     shares = shares_of_contacts(events, joints, start, t_end)
     out: dict[str, float] = {}
     for j in joints:

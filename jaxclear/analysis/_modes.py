@@ -18,25 +18,51 @@ DEFAULT_CONTINUOUS_FRACTION = (
 )
 
 
+def grid_contacts(t, penetration, minimum_duration: float) -> dict[str, np.ndarray]:
+    """One joint's contacts from saved instants: maximal runs of instants with δ > 0.
+
+    The fallback where located events are missing (``contact_events``): a run starting at
+    sample i and ending at sample k lasts t_k − t_i + Δt (Δt the median spacing), ends at
+    min(t_k + Δt, last instant); a contact between two samples is not seen.
+
+    Args:
+        t: saved times (N,), s.
+        penetration: δ at those times (N,), m.
+        minimum_duration: contact runs lasting at least this long (s) are continuous contact.
+
+    Returns:
+        ``{"onset", "end", "duration", "mode", "first", "last"}``: arrays over the runs (``first``
+        and ``last`` are the runs' sample indices).
+    """
+    t = np.asarray(t, dtype=float)
+    inside = np.asarray(penetration) > 0.0
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    edges = np.diff(np.concatenate([[0], inside.astype(int), [0]]))
+    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+    duration = t[last] - t[first] + dt
+    return {
+        "onset": t[first],
+        "end": np.minimum(t[last] + dt, t[-1]) if t.size else t[last],
+        "duration": duration,
+        "mode": np.where(duration >= minimum_duration, CONTINUOUS, IMPACT),
+        "first": first,
+        "last": last,
+    }
+
+
 def contact_modes(t, penetration, minimum_duration: float) -> np.ndarray:
-    """Mode label (0 free, 1 impact, 2 continuous) per saved instant for one joint.
+    """Mode label (0 free, 1 impact, 2 continuous) per saved instant for one joint
+    (the runs of ``grid_contacts``).
 
     Args:
         t: saved times (N,), s.
         penetration: δ at those times (N,), m.
         minimum_duration: contact runs lasting at least this long (s) are continuous contact.
     """
-    t = np.asarray(t)
-    contact = np.asarray(penetration) > 0.0
-    labels = np.zeros(t.shape, dtype=int)
-    dt = np.median(np.diff(t)) if t.size > 1 else 0.0
-    start = 0
-    for is_contact, group in itertools.groupby(contact):
-        n = len(list(group))
-        if is_contact:
-            duration = t[start + n - 1] - t[start] + dt
-            labels[start : start + n] = CONTINUOUS if duration >= minimum_duration else IMPACT
-        start += n
+    runs = grid_contacts(t, penetration, minimum_duration)
+    labels = np.zeros(np.shape(t), dtype=int)
+    for a, b, mode in zip(runs["first"], runs["last"], runs["mode"]):
+        labels[a : b + 1] = mode
     return labels
 
 

@@ -20,6 +20,7 @@ import jaxclear
 
 from .. import _outputs
 from .._startup import ideal_mechanism, wall_start
+from ..analysis._ensemble import EVENTS_PER_REVOLUTION
 from ._common import (
     PROG,
     RunError,
@@ -37,10 +38,6 @@ from ._settings import (
     solver_names,
 )
 
-EVENTS_PER_REVOLUTION = 128
-"""Room for contact events per clearance joint and crank revolution (at least 256): the default
-run has 3–7 contacts per joint and revolution; an overflowing buffer is reported in run.json and
-the shares then come from the saved grid."""
 MODES_CSV = "modes.csv"
 
 WARMUP_FRACTION = 1e-3
