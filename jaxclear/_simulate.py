@@ -266,7 +266,7 @@ def _simulate_core(
         constraint_violation=out["constraint_violation"],
         velocity_violation=out["velocity_violation"],
         clearance=out["clearance"],
-        extremes=sol.solver_state[1] if track_extremes else None,  # pyright: ignore[reportOptionalSubscript]
+        extremes=sol.solver_state[1].extremes() if track_extremes else None,  # pyright: ignore[reportOptionalSubscript]
         num_steps=sol.stats["num_steps"],
         num_accepted_steps=sol.stats["num_accepted_steps"],
         num_rejected_steps=sol.stats["num_rejected_steps"],

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear._extremes import Extremes, Observation
+from jaxclear._extremes import Observation, Tracker
 from jaxclear.analysis import CONTINUOUS, IMPACT, contact_events, event_mode_shares
 from jaxclear.analysis._modes import contact_modes
 from jaxclear.contact import LankaraniNikravesh
@@ -33,9 +33,10 @@ def test_onsets_and_ends_are_located_between_samples():
     rng = np.random.default_rng(0)
     t = np.concatenate([[0.0], np.sort(rng.uniform(0.0, 2.0, 400)), [2.0]])
     delta = np.sin(2 * np.pi * t) - 0.5
-    x = Extremes.first(0.0, t[0], _observation(delta[0]), max_events=8)
+    x = Tracker.first(0.0, t[0], _observation(delta[0]), max_events=8)
     for ti, di in zip(t[1:], delta[1:]):
         x = x.update(ti, _observation(di))
+    x = x.extremes()
     assert int(x.event_count["B"]) == 2
     events = np.asarray(x.events["B"])[:2]
     exact = np.array([[1 / 12, 5 / 12], [13 / 12, 17 / 12]])
@@ -48,9 +49,10 @@ def test_onsets_and_ends_are_located_between_samples():
 
 
 def test_overflowing_buffer_is_counted_not_stored():
-    x = Extremes.first(0.0, 0.0, _observation(-1.0), max_events=1)
+    x = Tracker.first(0.0, 0.0, _observation(-1.0), max_events=1)
     for k, d in enumerate([1.0, -1.0, 1.0, -1.0, 1.0]):
         x = x.update(float(k + 1), _observation(d))
+    x = x.extremes()
     assert int(x.event_count["B"]) == 2
     np.testing.assert_allclose(np.asarray(x.events["B"]), [[0.5, 1.5]])
     assert float(x.contact_onset["B"]) == pytest.approx(4.5)
