@@ -89,6 +89,10 @@ class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
             rows, affine and diagonal in the others (not checked here; see the module docstring).
         num_explicit: number of leading rows (q, q̇) that the stiff part leaves alone.
         variant: 3, 4 or 5 (KenCarp3, KenCarp4, KenCarp5).
+        stage: optional ``stage(t, P, γh, args) -> (Y, f(Y), f_I(Y))``, the stage solve and both
+            evaluations in one call (``dynamics._equations.implicit_stage``, which shares the
+            kinematics between them); without it each stage evaluates ``stiff`` (with a
+            Jacobian–vector product) and the full field apart. Same values either way.
 
     ``terms`` is the full vector field f = f^E + f^I (an ``ODETerm``); the state a 1-D array.
     """
@@ -96,6 +100,7 @@ class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
     stiff: Callable = eqx.field(static=True)
     num_explicit: int = eqx.field(static=True)
     variant: int = eqx.field(static=True, default=5)
+    stage: Callable | None = eqx.field(static=True, default=None)
     term_structure: ClassVar = diffrax.AbstractTerm
     interpolation_cls: ClassVar = _AffineKenCarpInterpolation
 
@@ -125,19 +130,22 @@ class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
         implicit_rows = jnp.arange(n) >= self.num_explicit
 
         def stage_value(i, ks_e, ks_i):
-            """Stage i's value and f_I there, from the earlier stages (closed-form implicit solve)."""
+            """Stage i's value, f and f_I there, from the earlier stages (closed-form solve)."""
             partial = y0 + jnp.sum(a_e[i][:, None] * ks_e + a_i[i][:, None] * ks_i, axis=0)
             gamma_h = jnp.where(i == 0, 0.0, tab.gamma) * h  # stage 1 is explicit (a^I_11 = 0)
-            a, slope = self._stiff_affine(t0 + c[i] * h, partial, args)
+            t = t0 + c[i] * h
+            if self.stage is not None:
+                return self.stage(t, partial, gamma_h, args)
+            a, slope = self._stiff_affine(t, partial, args)
             internal = (partial + gamma_h * a) / (1.0 - gamma_h * slope)
             y_stage = jnp.where(implicit_rows, internal, partial)
             f_implicit = jnp.where(implicit_rows, a + slope * y_stage, 0.0)
-            return y_stage, f_implicit
+            return y_stage, terms.vf(t, y_stage, args), f_implicit
 
         def stage(i, carry):
             ks_e, ks_i = carry
-            y_stage, f_implicit = stage_value(i, ks_e, ks_i)
-            f_explicit = terms.vf(t0 + c[i] * h, y_stage, args) - f_implicit
+            _, f, f_implicit = stage_value(i, ks_e, ks_i)
+            f_explicit = f - f_implicit
             return ks_e.at[i].set(h * f_explicit), ks_i.at[i].set(h * f_implicit)
 
         zeros = jnp.zeros((tab.stages, n), dtype)

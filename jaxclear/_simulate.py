@@ -24,6 +24,7 @@ from .dynamics._equations import (
     clearance_outputs,
     evaluate,
     generalized_forces,
+    implicit_stage,
     memory_decay_rates,
     memory_offset_shift,
     nonstiff_vector_field,
@@ -41,6 +42,7 @@ _FULL = eqx.filter_jit(vector_field)
 _STIFF = eqx.filter_jit(stiff_vector_field)
 _NONSTIFF = eqx.filter_jit(nonstiff_vector_field)
 _DECAY = eqx.filter_jit(memory_decay_rates)
+_STAGE = eqx.filter_jit(implicit_stage)
 
 
 def initial_state(mechanism, q0, qd0):
@@ -221,6 +223,7 @@ def _simulate_core(
         decay=_DECAY,
         memory_rows=mechanism.memory_rows,
         stiff=_STIFF,
+        stage=_STAGE,
     )
     # ForwardMode sets the Runge–Kutta stage loop to a kind that jvp can go through only for an
     # unwrapped solver (diffrax/_adjoint.py, ForwardMode, "Support forward-mode autodiff"); do it

@@ -126,7 +126,7 @@ class SolverConfig(eqx.Module):
         return diffrax.RecursiveCheckpointAdjoint(checkpoints=self.checkpoints)
 
     def make_solver(
-        self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None
+        self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None, stage=None
     ):
         """The diffrax solver.
 
@@ -136,6 +136,8 @@ class SolverConfig(eqx.Module):
         full vector field); with ``num_explicit`` alone, diffrax's KenCarp whose stage equations
         ``DiagonalNewton`` solves (terms: a ``MultiTerm`` of the non-stiff and stiff parts);
         otherwise ``diffrax.VeryChord``.
+        ``stage``: for IMEX methods with ``stiff``, the stage solve and both evaluations in one
+        call (``AffineKenCarp.stage``).
         ``decay``, ``memory_rows``: for exponential methods, ``decay(t, y, args)``, the diagonal
         decay rates of the rows marked in the boolean mask ``memory_rows``."""
         if self.method in EXPONENTIAL:
@@ -145,7 +147,7 @@ class SolverConfig(eqx.Module):
                 decay, tuple(int(i) for i in np.flatnonzero(memory_rows))
             )
         if self.imex and num_explicit is not None and stiff is not None:
-            return AffineKenCarp(stiff, num_explicit, IMEX_ORDER[self.method])
+            return AffineKenCarp(stiff, num_explicit, IMEX_ORDER[self.method], stage)
         if self.imex and num_explicit is not None:
             root = DiagonalNewton(
                 rtol=self.newton_rtol, atol=self.newton_atol, num_explicit=num_explicit, affine=True
@@ -178,14 +180,14 @@ class SolverConfig(eqx.Module):
 PRESETS = {
     "robust": SolverConfig(method="kvaerno5"),
     "fast": SolverConfig(method="tsit5"),
-    "imex": SolverConfig(method="kencarp5"),
+    "imex": SolverConfig(method="kencarp4"),
     "accurate": SolverConfig(
         method="kvaerno5", rtol=1e-9, atol=1e-12, newton_rtol=1e-5, newton_atol=1e-9
     ),
 }
-"""Named presets: ``robust`` (L-stable implicit Kvaerno5 on the whole state), ``imex`` (KenCarp5:
+"""Named presets: ``robust`` (L-stable implicit Kvaerno5 on the whole state), ``imex`` (KenCarp4:
 implicit only in the declared stiff internal states — LuGre z, impact-memory relaxation — explicit
-elsewhere; the fastest choice with LuGre friction), ``fast`` (explicit Tsit5, best for ideal joints
+elsewhere; the fastest choice with LuGre friction, see ``recommended_solver``), ``fast`` (explicit Tsit5, best for ideal joints
 and frictionless/Coulomb contact), ``accurate`` (Kvaerno5 with tight tolerances).
 
 Not a preset: method ``lawson-tsit5`` (Tsit5 with the impact-memory decay taken exactly). Tsit5's
@@ -205,7 +207,13 @@ def recommended_solver(mechanism) -> SolverConfig:
     makes Tsit5 take ~5× more steps (three joints, hybrid law: Tsit5 run 1.52 s / 48 011 steps,
     KenCarp5 with ``DiagonalNewton`` 0.77 s / 9 424 steps, Kvaerno5 3.3 s; KenCarp5 with the
     closed-form stage solves of ``AffineKenCarp`` then took 0.477 s / 6 773 steps); without internal
-    friction states Tsit5 is the fastest (ideal joints, Coulomb-type friction).
+    friction states Tsit5 is the fastest (ideal joints, Coulomb-type friction). Since each stage
+    solves and evaluates in one pass (``dynamics._equations.implicit_stage``) KenCarp4's six
+    stages beat KenCarp5's eight: L-N + LuGre, three joints (case c), run 0.236–0.331 s against
+    0.270–0.361 s over rtol × 0.8 … 1.25 (7 955–10 988 and 7 455–9 804 steps); the default run
+    0.521 s / 6 487 steps against 0.651 s / 6 002 steps, the pin-on-rod example 0.870 s against
+    1.002 s. Over the first contacts both take the same branch of the first stick phase as before
+    (docs/solvers.md, "Accuracy").
     """
     stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
     return PRESETS["imex" if stiff else "fast"]

@@ -15,7 +15,7 @@ import pytest
 import jaxclear
 from jaxclear._imex import AffineKenCarp
 from jaxclear._root_finder import DiagonalNewton
-from jaxclear._simulate import _FULL, _NONSTIFF, _STIFF
+from jaxclear._simulate import _FULL, _NONSTIFF, _STAGE, _STIFF
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import LuGre
 from jaxclear.mechanisms import slider_crank
@@ -69,15 +69,60 @@ def test_affine_kencarp_step_equals_diffrax_kencarp_with_diagonal_newton(lugre_s
     split = diffrax.MultiTerm(diffrax.ODETerm(_NONSTIFF), diffrax.ODETerm(_STIFF))
     for h in (1e-7, 3e-6):  # the second makes h·rate ≫ 1 for the memory (k_m = 1e6 1/s)
         ours = one_step(diffrax.ODETerm(_FULL), AffineKenCarp(_STIFF, n2, variant), y, mech, h)
+        # the stage solve and both evaluations in one call (what simulate uses)
+        fused = AffineKenCarp(_STIFF, n2, variant, _STAGE)
+        ours_fused = one_step(diffrax.ODETerm(_FULL), fused, y, mech, h)
         ref = one_step(split, reference, y, mech, h)
         assert np.all(np.isfinite(ours))
         assert np.max(np.abs(ours[1] - y)) > 1e3 * ROUNDING  # the step moved the state
         np.testing.assert_allclose(ours, ref, rtol=0, atol=ROUNDING)
+        np.testing.assert_allclose(ours_fused, ref, rtol=0, atol=ROUNDING)
 
 
 def test_imex_preset_uses_the_closed_form_solver():
     mech = slider_crank(clearance_joints="B", friction_law=LuGre())
     config = jaxclear.recommended_solver(mech)
     solver = config.make_solver(num_explicit=2 * mech.num_coordinates, stiff=_STIFF)
-    assert isinstance(solver, AffineKenCarp) and solver.variant == 5
-    assert isinstance(config.make_solver(num_explicit=2 * mech.num_coordinates), diffrax.KenCarp5)
+    assert isinstance(solver, AffineKenCarp) and solver.variant == 4
+    assert isinstance(config.make_solver(num_explicit=2 * mech.num_coordinates), diffrax.KenCarp4)
+
+
+class _Lag(jaxclear.AbstractForceElement):
+    """A force element with a stiff internal state: a horizontal force on the slider that lags
+    k_f x_slider with time constant 1/rate, ṡ = rate (k_f x − s) (stiff part: all of it)."""
+
+    name: str = eqx.field(static=True, default="lag")
+    rate: float = 2e6
+    gain: float = 1e3
+
+    @property
+    def bodies(self):
+        return ("slider",)
+
+    @property
+    def num_states(self):
+        return 1
+
+    def generalized_force(self, index, q, qd, t, state):
+        return jnp.zeros_like(q).at[3 * index("slider")].set(-state[0])
+
+    def state_derivative(self, index, q, qd, qdd, t, state):
+        return self.stiff_state_derivative(index, q, qd, t, state)
+
+    def stiff_state_derivative(self, index, q, qd, t, state):
+        return self.rate * (self.gain * q[3 * index("slider")] - state)
+
+
+def test_fused_stage_solves_force_element_states_too(lugre_state):
+    """A force element's stiff state beside the clearance joints' (``implicit_stage`` solves
+    those apart from the joints'): same step as the stage evaluated in two calls."""
+    mech, y = lugre_state
+    mech = eqx.tree_at(lambda m: m.forces, mech, (_Lag(),))
+    n2 = 2 * mech.num_coordinates
+    y = jnp.concatenate([y[:n2], jnp.asarray([25.0]), y[n2:]])  # the lag's state comes first
+    assert mech.state_size == y.size
+    for h in (1e-7, 3e-6):
+        plain = one_step(diffrax.ODETerm(_FULL), AffineKenCarp(_STIFF, n2, 5), y, mech, h)
+        fused = one_step(diffrax.ODETerm(_FULL), AffineKenCarp(_STIFF, n2, 5, _STAGE), y, mech, h)
+        assert abs(plain[1, n2] - 25.0) > 1e-3  # the lag's state moved
+        np.testing.assert_allclose(fused, plain, rtol=0, atol=ROUNDING * 1e3)

@@ -95,11 +95,15 @@ def _vmapped(elements, function):
     return lambda *args: jax.vmap(call)(stacked, *args)
 
 
-def batched_force_and_cache(mechanism, elements, q, qd, t, states):
-    """(Q contribution of all ``elements``, stacked cache)."""
+def batched_force_and_cache(mechanism, elements, q, qd, t, states, gamma_h=None):
+    """(Q contribution of all ``elements``, stacked cache); ``gamma_h``: see
+    ``clearance.local_force_and_cache``."""
     ib, ij = _indices(mechanism, elements)
     q3, qd3 = _extended(q), _extended(qd)
-    fn = _vmapped(elements, clearance.local_force_and_cache)
+    fn = _vmapped(
+        elements,
+        lambda e, *a: clearance.local_force_and_cache(e, *a, gamma_h=gamma_h),
+    )
     on_bearing, on_journal, cache = fn(
         q3[ib], qd3[ib], q3[ij], qd3[ij], _stack_states(elements, states)
     )

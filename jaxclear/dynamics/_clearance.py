@@ -13,6 +13,7 @@ law states] (``dynamics._impact_memory``).
 from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
@@ -204,10 +205,12 @@ def kinematics(joint: ClearanceJoint, index: Index, q, qd) -> JointKinematics:
 
 
 def local_contact_forces(
-    joint: ClearanceJoint, qb, qdb, qj, qdj, state
+    joint: ClearanceJoint, qb, qdb, qj, qdj, state, k: JointKinematics | None = None
 ) -> tuple[JointKinematics, ContactForces]:
-    """``contact_forces`` from the two bodies' coordinates and velocities."""
-    k = local_kinematics(joint, qb, qdb, qj, qdj)
+    """``contact_forces`` from the two bodies' coordinates and velocities (``k``: their
+    kinematics if already computed)."""
+    if k is None:
+        k = local_kinematics(joint, qb, qdb, qj, qdj)
     kin = ContactKinematics(
         penetration=k.penetration,
         penetration_rate=k.penetration_rate,
@@ -235,22 +238,36 @@ def contact_forces(
     return local_contact_forces(joint, *_gather(body_indices(joint, index), q, qd), state)
 
 
-def local_force_and_cache(joint: ClearanceJoint, qb, qdb, qj, qdj, state):
+def local_force_and_cache(joint: ClearanceJoint, qb, qdb, qj, qdj, state, gamma_h=None):
     """(generalised force on the bearing body (3,), on the journal body (3,), cache).
 
     The cache, (``JointKinematics``, ``ContactForces``), goes to ``local_state_derivative``.
+
+    With ``gamma_h`` (an implicit stage of an IMEX method, ``dynamics._equations.implicit_stage``)
+    ``state`` is the stage's explicit part P and the internal state used is the solution s of
+    s = P + γh f_I(s) (closed form: the stiff part is affine and diagonal in the state, with
+    coefficients from this kinematics); the cache then also holds s and f_I(s).
     """
-    k, f = local_contact_forces(joint, qb, qdb, qj, qdj, state)
+    k = local_kinematics(joint, qb, qdb, qj, qdj)
+    solved = None if gamma_h is None else solve_stiff_state(joint, k, state, gamma_h)
+    if solved is not None:
+        state = solved[0]
+    k, f = local_contact_forces(joint, qb, qdb, qj, qdj, state, k)
     fj = f.force_on_journal
     on_journal = _body_wrench(qj, k.journal_contact_point, fj)
     on_bearing = _body_wrench(qb, k.bearing_contact_point, -fj)
+    if solved is not None:
+        return on_bearing, on_journal, (k, f, *solved)
     return on_bearing, on_journal, (k, f)
 
 
-def force_and_cache(joint: ClearanceJoint, index: Index, q, qd, state):
-    """(Q contribution of the joint (size of q), cache for ``state_derivative_cached``)."""
+def force_and_cache(joint: ClearanceJoint, index: Index, q, qd, state, gamma_h=None):
+    """(Q contribution of the joint (size of q), cache for ``state_derivative_cached``); with
+    ``gamma_h`` see ``local_force_and_cache``."""
     ib, ij = body_indices(joint, index)
-    on_bearing, on_journal, cache = local_force_and_cache(joint, *_gather((ib, ij), q, qd), state)
+    on_bearing, on_journal, cache = local_force_and_cache(
+        joint, *_gather((ib, ij), q, qd), state, gamma_h
+    )
     force = jnp.zeros_like(q)
     for i, f in ((ib, on_bearing), (ij, on_journal)):
         if i is not None:
@@ -323,14 +340,27 @@ def state_derivative(joint: ClearanceJoint, index: Index, q, qd, qdd, state) -> 
     )
 
 
-def local_stiff_state_derivative(joint: ClearanceJoint, qb, qdb, qj, qdj, state):
-    """``stiff_state_derivative`` from the two bodies' coordinates and velocities."""
-    k = local_kinematics(joint, qb, qdb, qj, qdj)
+def _stiff_rate(joint: ClearanceJoint, k: JointKinematics, state):
     m_dot = memory_relaxation(
         state[0], k.penetration, k.penetration_rate, joint.smoothing, joint.memory_offset
     )
     z_dot = joint.friction_law.stiff_state_derivative(k.slip_velocity, state[1:], joint.smoothing)
     return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
+
+
+def solve_stiff_state(joint: ClearanceJoint, k: JointKinematics, partial, gamma_h):
+    """(s, f_I(s)): the solution of s = P + γh f_I(s) for the joint's internal state, P =
+    ``partial``. f_I is affine and diagonal in s (``tests/test_fast_paths.py``), f_I(s) = a + ℓ s
+    with a, ℓ from one Jacobian–vector product at s = 0, so s = (P + γh a) / (1 − γh ℓ)."""
+    zero = jnp.zeros_like(partial)
+    a, slope = jax.jvp(lambda s: _stiff_rate(joint, k, s), (zero,), (jnp.ones_like(partial),))
+    state = (partial + gamma_h * a) / (1.0 - gamma_h * slope)
+    return state, a + slope * state
+
+
+def local_stiff_state_derivative(joint: ClearanceJoint, qb, qdb, qj, qdj, state):
+    """``stiff_state_derivative`` from the two bodies' coordinates and velocities."""
+    return _stiff_rate(joint, local_kinematics(joint, qb, qdb, qj, qdj), state)
 
 
 def stiff_state_derivative(joint: ClearanceJoint, index: Index, q, qd, state) -> Float[Array, " s"]:
