@@ -175,7 +175,7 @@ def test_defaults_are_three_clearance_joints():
     assert settings.sources[("clearance", "joints")] == "default"
     mechanism = build_mechanism(settings)
     assert (
-        solver_for(settings, mechanism).method == "kencarp5"
+        solver_for(settings, mechanism).method == "kencarp4"
     )  # auto with LuGre -> imex (measured)
     coulomb = resolve_settings(build_parser().parse_args(["run", "--friction", "coulomb"]))
     assert solver_for(coulomb, build_mechanism(coulomb)).method == "tsit5"  # auto otherwise -> fast
@@ -190,7 +190,7 @@ def test_defaults_are_three_clearance_joints():
     assert settings.config["simulation"]["start"] == "centred"
     assert settings.config["simulation"]["skip_revolutions"] == 1.0
     imex = resolve_settings(build_parser().parse_args(["run", "--solver", "imex"]))
-    assert solver_for(imex).method == "kencarp5"
+    assert solver_for(imex).method == "kencarp4"
 
 
 def test_clearance_columns(clearance_run):

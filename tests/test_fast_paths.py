@@ -231,7 +231,7 @@ def test_auto_solver_choice():
     assert jaxclear.recommended_solver(slider_crank()).method == "tsit5"
     assert (
         jaxclear.recommended_solver(slider_crank(clearance_joints="B", friction_law=LuGre())).method
-        == "kencarp5"
+        == "kencarp4"
     )
     coulomb = slider_crank(
         clearance_joints="O,A,B", friction_law=friction_law_from_name("modified-coulomb")

@@ -115,8 +115,8 @@ def solver_help() -> str:
 
 
 DEFAULT_SOLVER = "auto"
-"""Default: ``auto`` = ``jaxclear.recommended_solver``: ``imex`` (KenCarp5, implicit in the internal
-states) with LuGre friction, ``fast`` (Tsit5) otherwise. Measured on the default three-joint run
+"""Default: ``auto`` = ``jaxclear.recommended_solver``: ``imex`` (KenCarp4 since issue 13's work,
+KenCarp5 before; implicit in the internal states) with LuGre friction, ``fast`` (Tsit5) otherwise. Measured on the default three-joint run
 (hybrid + LuGre, 2 revolutions, 2-core machine, fast_compile on): KenCarp5 compile 5.8 s + run
 0.77 s (9 424 steps), Tsit5 4.9 s + 1.52 s (48 011 steps), Kvaerno5 (``robust``) 14.2 s + 3.3 s;
 KenCarp5 with closed-form stage solves (``jaxclear._imex``, now used) 4.91 s + 0.477 s."""
