@@ -13,7 +13,7 @@ XLA compilation.
 
 Cases (benchmark slider–crank, 5000 rpm):
 - ``run``: the default run's solve, O, A, B with the hybrid law and LuGre friction, 721 points
-  (``jaxclear run``'s grid, solver ``auto``: KenCarp5);
+  (``jaxclear run``'s grid, solver ``auto``: KenCarp4, KenCarp5 before commit 740849f);
 - ``batch``: joint B, Lankarani–Nikravesh and modified Coulomb, 8 clearances in one vmapped solve;
 - ``grad``: reverse-mode gradient of the slider position after 0.3 ms with respect to B's
   clearance (``jaxclear.gradient_solver``'s settings).
