@@ -14,9 +14,10 @@ then has its q, q̇ rows equal to those of P_i and its internal rows in closed f
                                           one Jacobian–vector product along the internal rows).
 
 This is what ``DiagonalNewton(affine=True)`` computes inside diffrax's ``KenCarp5`` through
-optimistix's root-finding loop; done directly, a stage costs one stiff evaluation (with its JVP)
-and one full right-hand side (f^E = f − f^I), and the stages run in one ``fori_loop`` so the vector
-field is compiled once. Same tableaus (Kennedy & Carpenter 2003: ARK3(2)4L[2]SA, ARK4(3)6L[2]SA,
+optimistix's root-finding loop. Done directly, a stage is one call of a ``stage`` function that
+solves for s_i and evaluates f and f_I at Y_i in one pass over the model
+(``dynamics._equations.implicit_stage``: the joints' kinematics serve the stiff coefficients and
+the forces; f^E = f − f^I), and the stages run in one ``fori_loop`` so the model is compiled once. Same tableaus (Kennedy & Carpenter 2003: ARK3(2)4L[2]SA, ARK4(3)6L[2]SA,
 ARK5(4)8L[2]SA, taken from diffrax's ``KenCarp3/4/5``), same error estimates and dense output: a
 step agrees with diffrax's KenCarp + ``DiagonalNewton(affine=True)`` to rounding
 (tests/test_imex_affine.py).
@@ -85,22 +86,20 @@ class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
     """KenCarp3/4/5 with closed-form stage solves for an affine diagonal stiff part.
 
     Attributes:
-        stiff: ``stiff(t, y, args) -> f_I`` (same shape as y): zero on the first ``num_explicit``
-            rows, affine and diagonal in the others (not checked here; see the module docstring).
+        stage: ``stage(t, P, γh, args) -> (Y, f(Y), f_I(Y))``: Y has the first ``num_explicit``
+            rows of P and solves Y = P + γh f_I(Y) on the others, where the stiff part f_I is zero
+            on the first rows and affine and diagonal in the others (not checked here; see the
+            module docstring); f is the full vector field (``dynamics._equations.implicit_stage``).
         num_explicit: number of leading rows (q, q̇) that the stiff part leaves alone.
         variant: 3, 4 or 5 (KenCarp3, KenCarp4, KenCarp5).
-        stage: optional ``stage(t, P, γh, args) -> (Y, f(Y), f_I(Y))``, the stage solve and both
-            evaluations in one call (``dynamics._equations.implicit_stage``, which shares the
-            kinematics between them); without it each stage evaluates ``stiff`` (with a
-            Jacobian–vector product) and the full field apart. Same values either way.
 
-    ``terms`` is the full vector field f = f^E + f^I (an ``ODETerm``); the state a 1-D array.
+    ``terms`` is the full vector field f = f^E + f^I (an ``ODETerm``, used for ``func``); the state
+    a 1-D array.
     """
 
-    stiff: Callable = eqx.field(static=True)
+    stage: Callable = eqx.field(static=True)
     num_explicit: int = eqx.field(static=True)
     variant: int = eqx.field(static=True, default=5)
-    stage: Callable | None = eqx.field(static=True, default=None)
     term_structure: ClassVar = diffrax.AbstractTerm
     interpolation_cls: ClassVar = _AffineKenCarpInterpolation
 
@@ -113,13 +112,6 @@ class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
     def func(self, terms, t0, y0, args):
         return terms.vf(t0, y0, args)
 
-    def _stiff_affine(self, t, y_partial, args):
-        """(a, ℓ): f_I at ``y_partial`` with the internal rows zeroed, and its diagonal slope."""
-        rows = jnp.arange(y_partial.shape[0]) >= self.num_explicit
-        indicator = rows.astype(y_partial.dtype)
-        base = jnp.where(rows, 0.0, y_partial)
-        return jax.jvp(lambda y: self.stiff(t, y, args), (base,), (indicator,))
-
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         del solver_state, made_jump
         tab = TABLEAUS[self.variant]
@@ -127,24 +119,12 @@ class AffineKenCarp(diffrax.AbstractAdaptiveSolver):
         dtype = y0.dtype
         a_e, a_i, c = (jnp.asarray(x, dtype) for x in (tab.a_explicit, tab.a_implicit, tab.c))
         n = y0.shape[0]
-        implicit_rows = jnp.arange(n) >= self.num_explicit
-
-        def stage_value(i, ks_e, ks_i):
-            """Stage i's value, f and f_I there, from the earlier stages (closed-form solve)."""
-            partial = y0 + jnp.sum(a_e[i][:, None] * ks_e + a_i[i][:, None] * ks_i, axis=0)
-            gamma_h = jnp.where(i == 0, 0.0, tab.gamma) * h  # stage 1 is explicit (a^I_11 = 0)
-            t = t0 + c[i] * h
-            if self.stage is not None:
-                return self.stage(t, partial, gamma_h, args)
-            a, slope = self._stiff_affine(t, partial, args)
-            internal = (partial + gamma_h * a) / (1.0 - gamma_h * slope)
-            y_stage = jnp.where(implicit_rows, internal, partial)
-            f_implicit = jnp.where(implicit_rows, a + slope * y_stage, 0.0)
-            return y_stage, terms.vf(t, y_stage, args), f_implicit
 
         def stage(i, carry):
             ks_e, ks_i = carry
-            _, f, f_implicit = stage_value(i, ks_e, ks_i)
+            partial = y0 + jnp.sum(a_e[i][:, None] * ks_e + a_i[i][:, None] * ks_i, axis=0)
+            gamma_h = jnp.where(i == 0, 0.0, tab.gamma) * h  # stage 1 is explicit (a^I_11 = 0)
+            _, f, f_implicit = self.stage(t0 + c[i] * h, partial, gamma_h, args)
             f_explicit = f - f_implicit
             return ks_e.at[i].set(h * f_explicit), ks_i.at[i].set(h * f_implicit)
 

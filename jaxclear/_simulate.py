@@ -222,7 +222,6 @@ def _simulate_core(
         num_explicit=2 * mechanism.num_coordinates,
         decay=_DECAY,
         memory_rows=mechanism.memory_rows,
-        stiff=_STIFF,
         stage=_STAGE,
     )
     # ForwardMode sets the Runge–Kutta stage loop to a kind that jvp can go through only for an

@@ -126,18 +126,16 @@ class SolverConfig(eqx.Module):
         return diffrax.RecursiveCheckpointAdjoint(checkpoints=self.checkpoints)
 
     def make_solver(
-        self, num_explicit: int | None = None, decay=None, memory_rows=None, stiff=None, stage=None
+        self, num_explicit: int | None = None, decay=None, memory_rows=None, stage=None
     ):
         """The diffrax solver.
 
         ``num_explicit``: for IMEX methods, the number of leading state components (q, q̇) that the
-        stiff part leaves alone. With ``stiff`` (the stiff vector field, affine and diagonal in the
-        other rows) too, the result is ``AffineKenCarp`` (closed-form stage solves; its terms are the
-        full vector field); with ``num_explicit`` alone, diffrax's KenCarp whose stage equations
-        ``DiagonalNewton`` solves (terms: a ``MultiTerm`` of the non-stiff and stiff parts);
-        otherwise ``diffrax.VeryChord``.
-        ``stage``: for IMEX methods with ``stiff``, the stage solve and both evaluations in one
-        call (``AffineKenCarp.stage``).
+        stiff part leaves alone. With ``stage`` too (``stage(t, P, γh, args) -> (Y, f(Y), f_I(Y))``,
+        the closed-form stage solve and both evaluations, ``dynamics._equations.implicit_stage``)
+        the result is ``AffineKenCarp`` (its terms are the full vector field); with
+        ``num_explicit`` alone, diffrax's KenCarp whose stage equations ``DiagonalNewton`` solves
+        (terms: a ``MultiTerm`` of the non-stiff and stiff parts); otherwise ``diffrax.VeryChord``.
         ``decay``, ``memory_rows``: for exponential methods, ``decay(t, y, args)``, the diagonal
         decay rates of the rows marked in the boolean mask ``memory_rows``."""
         if self.method in EXPONENTIAL:
@@ -146,8 +144,8 @@ class SolverConfig(eqx.Module):
             return EXPONENTIAL[self.method](
                 decay, tuple(int(i) for i in np.flatnonzero(memory_rows))
             )
-        if self.imex and num_explicit is not None and stiff is not None:
-            return AffineKenCarp(stiff, num_explicit, IMEX_ORDER[self.method], stage)
+        if self.imex and num_explicit is not None and stage is not None:
+            return AffineKenCarp(stage, num_explicit, IMEX_ORDER[self.method])
         if self.imex and num_explicit is not None:
             root = DiagonalNewton(
                 rtol=self.newton_rtol, atol=self.newton_atol, num_explicit=num_explicit, affine=True

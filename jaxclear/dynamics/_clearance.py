@@ -348,14 +348,21 @@ def _stiff_rate(joint: ClearanceJoint, k: JointKinematics, state):
     return jnp.concatenate([jnp.reshape(m_dot, (1,)), jnp.reshape(z_dot, (-1,))])
 
 
-def solve_stiff_state(joint: ClearanceJoint, k: JointKinematics, partial, gamma_h):
-    """(s, f_I(s)): the solution of s = P + γh f_I(s) for the joint's internal state, P =
-    ``partial``. f_I is affine and diagonal in s (``tests/test_fast_paths.py``), f_I(s) = a + ℓ s
-    with a, ℓ from one Jacobian–vector product at s = 0, so s = (P + γh a) / (1 − γh ℓ)."""
+def solve_affine(rate, partial, gamma_h):
+    """(s, rate(s)): the solution of s = P + γh rate(s), P = ``partial``, for a ``rate`` affine and
+    diagonal in s (each entry depends on its own state only: ``tests/test_fast_paths.py`` checks
+    the stiff parts): rate(s) = a + ℓ s with a, ℓ from one Jacobian–vector product at s = 0, so
+    s = (P + γh a) / (1 − γh ℓ)."""
     zero = jnp.zeros_like(partial)
-    a, slope = jax.jvp(lambda s: _stiff_rate(joint, k, s), (zero,), (jnp.ones_like(partial),))
+    a, slope = jax.jvp(rate, (zero,), (jnp.ones_like(partial),))
     state = (partial + gamma_h * a) / (1.0 - gamma_h * slope)
     return state, a + slope * state
+
+
+def solve_stiff_state(joint: ClearanceJoint, k: JointKinematics, partial, gamma_h):
+    """``solve_affine`` for the joint's internal state (memory, friction states), with the
+    stiff part's coefficients from the kinematics ``k``."""
+    return solve_affine(lambda s: _stiff_rate(joint, k, s), partial, gamma_h)
 
 
 def local_stiff_state_derivative(joint: ClearanceJoint, qb, qdb, qj, qdj, state):

@@ -174,11 +174,17 @@ def _evaluate(mechanism, t, q, qd, states, caches, gamma_h=None) -> Evaluation:
     )
 
 
+def _rows(mechanism, head, per_element: dict, dtype) -> Float[Array, " N"]:
+    """A state-shaped vector: the ``head`` arrays (q and q̇ rows), then each force element's
+    entry of ``per_element`` in state order."""
+    parts = [*head] + [per_element[e.name] for e in mechanism.force_elements]
+    return jnp.concatenate([jnp.reshape(p, (-1,)).astype(dtype) for p in parts])
+
+
 def vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """dy/dt for diffrax: (q̇, q̈, internal state rates)."""
     out = evaluate(mechanism, t, y)
-    parts = [out.qd, out.qdd] + [out.state_rates[e.name] for e in mechanism.force_elements]
-    return jnp.concatenate([jnp.reshape(p, (-1,)).astype(y.dtype) for p in parts])
+    return _rows(mechanism, (out.qd, out.qdd), out.state_rates, y.dtype)
 
 
 def implicit_stage(t, partial, gamma_h, mechanism):
@@ -195,33 +201,23 @@ def implicit_stage(t, partial, gamma_h, mechanism):
     states = dict(states)
     stiff = {}
     for e in mechanism.forces:  # force elements with internal states solve theirs apart
-        s = states[e.name]
-        if e.num_states == 0:
-            stiff[e.name] = jnp.zeros((0,), partial.dtype)
-            continue
-        a, slope = jax.jvp(
+        states[e.name], stiff[e.name] = clearance.solve_affine(
             lambda x, e=e: e.stiff_state_derivative(mechanism.index, q, qd, t, x),
-            (jnp.zeros_like(s),),
-            (jnp.ones_like(s),),
+            states[e.name],
+            gamma_h,
         )
-        states[e.name] = (s + gamma_h * a) / (1.0 - gamma_h * slope)
-        stiff[e.name] = a + slope * states[e.name]
     caches = {}
     out = _evaluate(mechanism, t, q, qd, states, caches, gamma_h)
     for k, group in enumerate(groups(mechanism)):
         rates = caches[k][3]
         for i, e in enumerate(group):
             stiff[e.name] = rates[i] if len(group) > 1 else rates
-    n = mechanism.num_coordinates
-    elements = mechanism.force_elements
-
-    def flat(parts):
-        return jnp.concatenate([jnp.reshape(p, (-1,)).astype(partial.dtype) for p in parts])
-
-    y = flat([q, qd] + [out.states[e.name] for e in elements])
-    f = flat([out.qd, out.qdd] + [out.state_rates[e.name] for e in elements])
-    f_implicit = flat([jnp.zeros((2 * n,), partial.dtype)] + [stiff[e.name] for e in elements])
-    return y, f, f_implicit
+    zeros = jnp.zeros((2 * mechanism.num_coordinates,), partial.dtype)
+    return (
+        _rows(mechanism, (q, qd), out.states, partial.dtype),
+        _rows(mechanism, (out.qd, out.qdd), out.state_rates, partial.dtype),
+        _rows(mechanism, (zeros,), stiff, partial.dtype),
+    )
 
 
 def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
@@ -240,10 +236,7 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
             )
         else:
             rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
-    parts = [jnp.zeros((2 * n,), y.dtype)] + [
-        jnp.reshape(rates[e.name], (-1,)).astype(y.dtype) for e in mechanism.force_elements
-    ]
-    return jnp.concatenate(parts)
+    return _rows(mechanism, (jnp.zeros((2 * n,), y.dtype),), rates, y.dtype)
 
 
 def nonstiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
