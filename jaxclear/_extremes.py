@@ -359,7 +359,7 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
         y_mid = self.solver.interpolation_cls(t0=t0, t1=t1, **dense_info).evaluate(t_mid)
         # both samples in one vmapped evaluation: XLA's CPU cost is per kernel, nearly the same
         # for two points as for one, and the observation is compiled once
-        times = jnp.stack([t_mid, jnp.asarray(t1, dtype=t_mid.dtype)])
+        times = jnp.stack([jnp.asarray(t_mid, dtype=float), jnp.asarray(t1, dtype=float)])
         both = jax.vmap(lambda t, y: self.observe(t, y, args))(times, jnp.stack([y_mid, y1]))
         first, second = (jax.tree_util.tree_map(lambda x, i=i: x[i], both) for i in (0, 1))
         tracker = tracker.update(t_mid, first).update(t1, second)

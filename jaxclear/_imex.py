@@ -17,8 +17,8 @@ This is what ``DiagonalNewton(affine=True)`` computes inside diffrax's ``KenCarp
 optimistix's root-finding loop. Done directly, a stage is one call of a ``stage`` function that
 solves for s_i and evaluates f and f_I at Y_i in one pass over the model
 (``dynamics._equations.implicit_stage``: the joints' kinematics serve the stiff coefficients and
-the forces; f^E = f − f^I), and the stages run in one ``fori_loop`` so the model is compiled once. Same tableaus (Kennedy & Carpenter 2003: ARK3(2)4L[2]SA, ARK4(3)6L[2]SA,
-ARK5(4)8L[2]SA, taken from diffrax's ``KenCarp3/4/5``), same error estimates and dense output: a
+the forces; f^E = f − f^I), and the stages run in one ``fori_loop`` so the model is compiled
+once. Same tableaus (Kennedy & Carpenter 2003: ARK3(2)4L[2]SA, ARK4(3)6L[2]SA, ARK5(4)8L[2]SA, taken from diffrax's ``KenCarp3/4/5``), same error estimates and dense output: a
 step agrees with diffrax's KenCarp + ``DiagonalNewton(affine=True)`` to rounding
 (tests/test_imex_affine.py).
 

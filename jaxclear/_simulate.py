@@ -27,9 +27,7 @@ from .dynamics._equations import (
     implicit_stage,
     memory_decay_rates,
     memory_offset_shift,
-    nonstiff_vector_field,
     solve_accelerations,
-    stiff_vector_field,
     vector_field,
 )
 from .dynamics._equations import initial_state as dynamics_initial_state
@@ -39,8 +37,6 @@ ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly i
 # diffrax traces the vector field once per Runge–Kutta stage (and per Jacobian); wrapped in a jit,
 # the stages share one traced function, which XLA then inlines (same compiled code, less tracing).
 _FULL = eqx.filter_jit(vector_field)
-_STIFF = eqx.filter_jit(stiff_vector_field)
-_NONSTIFF = eqx.filter_jit(nonstiff_vector_field)
 _DECAY = eqx.filter_jit(memory_decay_rates)
 _STAGE = eqx.filter_jit(implicit_stage)
 

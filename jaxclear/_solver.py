@@ -185,8 +185,9 @@ PRESETS = {
 }
 """Named presets: ``robust`` (L-stable implicit Kvaerno5 on the whole state), ``imex`` (KenCarp4:
 implicit only in the declared stiff internal states — LuGre z, impact-memory relaxation — explicit
-elsewhere; the fastest choice with LuGre friction, see ``recommended_solver``), ``fast`` (explicit Tsit5, best for ideal joints
-and frictionless/Coulomb contact), ``accurate`` (Kvaerno5 with tight tolerances).
+elsewhere; the fastest choice with LuGre friction, see ``recommended_solver``), ``fast`` (explicit
+Tsit5, best for ideal joints and frictionless/Coulomb contact), ``accurate`` (Kvaerno5 with tight
+tolerances).
 
 Not a preset: method ``lawson-tsit5`` (Tsit5 with the impact-memory decay taken exactly). Tsit5's
 steps in free flight are held below ~3.5 µs by that decay, which also makes it more accurate than
