@@ -14,6 +14,12 @@ from ._errors import AssemblyError as AssemblyError  # noqa: E402
 from ._errors import DataError as DataError  # noqa: E402
 from ._errors import ModelError as ModelError  # noqa: E402
 from ._errors import SimulationError as SimulationError  # noqa: E402
+from ._executable_cache import compilation_cache_folder as compilation_cache_folder  # noqa: E402
+from ._executable_cache import (  # noqa: E402
+    compilation_cache_statistics as compilation_cache_statistics,
+)
+from ._executable_cache import disable_compilation_cache as disable_compilation_cache  # noqa: E402
+from ._executable_cache import enable_compilation_cache as enable_compilation_cache  # noqa: E402
 from ._measurements import Measurements as Measurements  # noqa: E402
 from ._signals import signal_names as signal_names  # noqa: E402
 from ._signals import signals as signals  # noqa: E402

@@ -14,6 +14,7 @@ from jaxtyping import ArrayLike
 
 from ._checks import is_concrete
 from ._errors import AssemblyError, ModelError, SimulationError
+from ._executable_cache import stored_jit
 from ._extremes import ExtremesTracking, Observation
 from ._smooth import safe_norm
 from ._solver import SolverConfig, solver_config
@@ -39,6 +40,7 @@ ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly i
 _FULL = eqx.filter_jit(vector_field)
 _DECAY = eqx.filter_jit(memory_decay_rates)
 _STAGE = eqx.filter_jit(implicit_stage)
+_INITIAL_STATE = stored_jit(dynamics_initial_state)  # eager: one program, not one per op
 
 
 def initial_state(mechanism, q0, qd0):
@@ -54,7 +56,7 @@ def assemble(mechanism, t0: float = 0.0):
     """
     check_parameters(mechanism)
     q0, qd0 = check_assembly(mechanism, t0)
-    return initial_state(mechanism, q0, qd0)
+    return _INITIAL_STATE(mechanism, q0, qd0)
 
 
 def check_parameters(mechanism) -> None:
@@ -183,7 +185,7 @@ def make_adjoint(adjoint, traced_tree=None, config=None) -> diffrax.AbstractAdjo
     )
 
 
-@eqx.filter_jit
+@stored_jit
 def _simulate_core(
     mechanism,
     ts,

@@ -641,35 +641,37 @@ def test_import_starts_no_jax_backend():
 def test_compilation_cache_stores_the_solve(tmp_path):
     """``jaxclear run`` in a fresh process stores its compiled solve in the persistent cache
     (``[solver] compilation_cache``, on by default; JAX refuses executables with host callbacks,
-    so this also checks the solve makes none) and says where in run.json; off, nothing is stored."""
+    so this also checks the solve makes none) and its whole compiled programs in jaxclear's store;
+    a second process loads them instead of compiling and prints the same statistics; off, nothing
+    is stored."""
     env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
-    for on in (True, False):
-        cache = tmp_path / f"cache-{on}"
+    argv = ["run", "--clearance-joints", "none", "--revolutions", "0.1", "--skip-revolutions", "0"]
+    argv += ["--no-plots", "--quiet"]
+
+    def run(cache, out, *extra):
         env["JAXCLEAR_CACHE_DIR"] = str(cache)
-        argv = [
-            "run",
-            "--clearance-joints",
-            "none",
-            "--revolutions",
-            "0.1",
-            "--skip-revolutions",
-            "0",
-        ]
-        argv += ["--no-plots"]
-        argv += ["--quiet", "--out", str(tmp_path / f"out-{on}")]
-        argv += [] if on else ["--no-compilation-cache"]
-        code = f"import sys; from jaxclear import cli; sys.exit(cli.main({argv!r}))"
+        full = [*argv, "--out", str(out), *extra]
+        code = f"import sys; from jaxclear import cli; sys.exit(cli.main({full!r}))"
         result = subprocess.run(
             [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300
         )
         assert result.returncode == 0, result.stderr
-        info = json.loads((tmp_path / f"out-{on}" / "run.json").read_text())
-        if on:
-            assert info["compilation_cache"] == str(cache)
-            stored = [p.name for p in cache.iterdir()]
-            assert any(name.startswith("jit_") and "simulate" in name for name in stored), stored
-        else:
-            assert info["compilation_cache"] == "off" and not cache.exists()
+        return json.loads((out / "run.json").read_text())
+
+    cache = tmp_path / "cache"
+    cold = run(cache, tmp_path / "cold")
+    assert cold["compilation_cache"] == str(cache)
+    stored = [p.name for p in cache.iterdir()]
+    assert any(name.startswith("jit_") and "simulate" in name for name in stored), stored
+    assert any(name.startswith("simulate_core-") for name in stored), stored
+    assert cold["compiled_programs"]["stored"] >= 2  # assembly, solve, ...
+    warm = run(cache, tmp_path / "warm")
+    assert warm["compiled_programs"]["compiled"] == 0
+    assert warm["compiled_programs"]["loaded"] == cold["compiled_programs"]["stored"]
+    assert warm["statistics"] == cold["statistics"]
+    off = run(tmp_path / "off", tmp_path / "out-off", "--no-compilation-cache")
+    assert off["compilation_cache"] == "off" and not (tmp_path / "off").exists()
+    assert off["compiled_programs"]["loaded"] == off["compiled_programs"]["compiled"] == 0
 
 
 # --- mechanisms from the config file --------------------------------------------------------------

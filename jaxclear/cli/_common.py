@@ -85,6 +85,10 @@ def apply_compilation_cache(on: bool) -> str:
     ``restore_error_mode`` undoes it. Failures of the solve itself are data (``Trajectory.result``),
     unaffected. A user's own ``JAX_COMPILATION_CACHE_DIR`` wins over ours.
 
+    The eager solves and assemblies also go to jaxclear's own store of whole compiled programs in
+    the same folder (``jaxclear.enable_compilation_cache``): a warm run skips their tracing and
+    lowering as well.
+
     Must run before the process's first compilation: JAX decides once whether to use the cache.
 
     Returns:
@@ -93,6 +97,8 @@ def apply_compilation_cache(on: bool) -> str:
     if not on:
         return "off"
     import jax
+
+    import jaxclear
 
     user = jax.config.jax_compilation_cache_dir  # pyright: ignore[reportAttributeAccessIssue]
     if user:
@@ -106,6 +112,10 @@ def apply_compilation_cache(on: bool) -> str:
         folder = str(path)
         jax.config.update("jax_compilation_cache_dir", folder)
     _set_error_mode("nan")
+    try:
+        jaxclear.enable_compilation_cache(folder)  # whole programs too: no tracing when warm
+    except OSError as e:
+        return f"off (cannot create {folder!r}: {e.strerror or e})"
     return folder
 
 
@@ -121,7 +131,11 @@ def _set_error_mode(mode: str) -> None:
 
 
 def restore_error_mode() -> None:
-    """Undo ``apply_compilation_cache``'s error mode (for ``jaxclear.cli.main`` called in-process)."""
+    """Undo ``apply_compilation_cache``'s error mode and executable store (for ``jaxclear.cli.main``
+    called in-process)."""
+    import jaxclear
+
+    jaxclear.disable_compilation_cache()
     if _saved_error_mode:
         import equinox._errors as errors
 

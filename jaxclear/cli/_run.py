@@ -362,11 +362,14 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         run_time_s=run_time,
         fast_compile=fast_compile,
         compilation_cache=compilation_cache,
+        compiled_programs=jaxclear.compilation_cache_statistics(),
         timing=(
             "compile_time_s: wall time of a warm-up simulate call over "
             f"{WARMUP_FRACTION:g} of the horizon with identical shapes and settings (tracing, XLA "
-            "compilation, assembly and a negligible solve); run_time_s: wall time of the full "
-            "simulate call afterwards, which reuses the compiled code."
+            "compilation, assembly and a negligible solve; with the compilation cache warm, "
+            "loading the stored program instead); run_time_s: wall time of the full "
+            "simulate call afterwards, which reuses the compiled code. compiled_programs: "
+            "programs loaded from the compilation cache, compiled (and stored) in this run."
         ),
         versions=_outputs.package_versions(),
         jax_backend=jax.default_backend(),

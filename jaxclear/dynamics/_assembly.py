@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._errors import AssemblyError
+from .._executable_cache import stored_jit
 from . import _clearance as clearance
 from ._constraints import constraints
 
@@ -92,6 +93,15 @@ def assemble_state(mechanism, t0=0.0):
     )
 
 
+@stored_jit
+def _assembly_diagnostics(mechanism, t0):
+    """``assemble_state`` and, at its q, Φ and Φ_q for ``check_assembly``: one compiled call
+    (evaluated op by op instead, the diagnostics compiled ~100 small programs, ~2 s per process)."""
+    q, qd, pos_res, _ = assemble_state(mechanism, t0)
+    jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
+    return q, qd, pos_res, jac, assembly_constraints(mechanism, q, t0)
+
+
 def check_assembly(mechanism, t0=0.0):
     """Eager assembly with diagnostics: raises ``AssemblyError`` naming the failing constraint.
 
@@ -102,12 +112,9 @@ def check_assembly(mechanism, t0=0.0):
         AssemblyError: redundant/singular constraints (names the rows involved), or a geometry
             that does not close (names the worst constraint and its residual).
     """
-    q, qd, pos_res, _ = jax.jit(assemble_state)(mechanism, t0)
+    q, qd, pos_res, jac, phi = _assembly_diagnostics(mechanism, jnp.asarray(t0, float))
     labels = assembly_labels(mechanism)
-    jac = np.asarray(
-        jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, jnp.asarray(t0, float))
-    )
-    phi = np.asarray(assembly_constraints(mechanism, q, jnp.asarray(t0, float)))
+    jac, phi = np.asarray(jac), np.asarray(phi)
     if jac.shape[0] > jac.shape[1]:
         raise AssemblyError(
             f"Mechanism has {jac.shape[0]} constraint equations for {jac.shape[1]} coordinates "

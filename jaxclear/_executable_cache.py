@@ -1,0 +1,347 @@
+"""Compiled programs kept on disk between processes: a warm start without tracing or compiling.
+
+JAX's persistent compilation cache (``jax_compilation_cache_dir``) skips only XLA's compilation:
+every new process still traces and lowers the solve (~2 s for the benchmark slider–crank with
+three clearance joints, more than the cached compile saves). ``stored_jit`` keeps the whole
+compiled executable instead (``jax.experimental.serialize_executable``), keyed on everything the
+program depends on, so a later process with the same call loads it in ~0.3 s.
+
+The key (SHA-256) covers:
+- the call's static structure: every argument with its arrays replaced by (shape, dtype, weak
+  type), pickled (mechanism topology, laws, solver settings, output grid size, ...);
+- jaxclear's own source (a hash of every ``.py`` file of the package: an edited checkout never
+  loads a program built from older code);
+- the versions of Python, jax, jaxlib, diffrax, equinox, lineax and optimistix; the backend,
+  its devices and the host CPU's feature flags; ``XLA_FLAGS``; the x64 setting.
+
+Only eager calls are served (under a transformation the arguments are tracers and the call is the
+ordinary ``eqx.filter_jit``). A program that calls back into Python (a progress bar) cannot be
+stored and is compiled as usual. Equinox's runtime checks are traced in NaN mode here
+(``EQX_ON_ERROR=nan``: a raising check is a host callback); the only such checks in a solve are
+diffrax's on the output times, which ``simulate`` has already checked on the host.
+"""
+
+import contextlib
+import dataclasses
+import functools
+import hashlib
+import importlib.metadata
+import io
+import os
+import pickle
+import platform
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import equinox as eqx
+import jax
+import jax.core  # jax.core.Tracer (jax imports it itself; named for type checkers)
+import numpy as np
+
+FORMAT = 1
+"""Layout of a stored entry; part of the key."""
+
+MAX_BYTES = 2**30
+"""Bytes the store keeps: on writing, the least recently used entries beyond this are deleted
+(an entry of the benchmark slider–crank's solve is ~3 MB; each edit of jaxclear's source or
+upgrade makes new ones)."""
+
+_folder: list[Path] = []  # the enabled folder, if any (a list: module state without `global`)
+_counts = {"loaded": 0, "stored": 0, "compiled": 0, "not_storable": 0}
+
+_PACKAGES = ("jax", "jaxlib", "diffrax", "equinox", "lineax", "optimistix")
+
+
+def enable_compilation_cache(folder: "str | os.PathLike[str]") -> Path:
+    """Keep compiled simulations in ``folder`` and load them in later processes.
+
+    Eager calls of ``simulate`` and ``assemble`` (and what calls them: ``jaxclear run`` turns this
+    on by default) then look for their compiled program in ``folder`` before tracing: a warm
+    start of the default run takes ~0.3 s instead of ~2 s with JAX's own persistent cache or
+    ~5 s cold. Calls under ``jax.jit``, ``jax.grad``, ``jax.vmap`` ... are unaffected. Entries
+    are keyed on the call's static structure, jaxclear's source and the installed versions, so
+    a stale entry is never used; delete the folder to reclaim its space.
+
+    Args:
+        folder: where compiled programs are written (created if missing).
+
+    Returns:
+        The folder, as a ``Path``.
+
+    Raises:
+        OSError: the folder cannot be created.
+    """
+    path = Path(folder).expanduser()
+    path.mkdir(parents=True, exist_ok=True)
+    _folder[:] = [path]
+    return path
+
+
+def disable_compilation_cache() -> None:
+    """Stop reading and writing compiled programs (``enable_compilation_cache``)."""
+    _folder.clear()
+
+
+def compilation_cache_folder() -> Path | None:
+    """The folder set by ``enable_compilation_cache``, or ``None`` when off."""
+    return _folder[0] if _folder else None
+
+
+def compilation_cache_statistics() -> dict[str, int]:
+    """Counts of this process's calls through the store since it started: programs ``loaded``
+    from the folder, ``compiled`` (not found), of which ``stored``, and calls ``not_storable``
+    (user code in the call, or a program that calls back into Python: compiled as usual)."""
+    return dict(_counts)
+
+
+@functools.cache
+def _environment() -> bytes:
+    """What a compiled program depends on besides its call: versions, hardware, flags, source."""
+    versions = []
+    for name in _PACKAGES:
+        try:
+            versions.append(f"{name}={importlib.metadata.version(name)}")
+        except importlib.metadata.PackageNotFoundError:
+            versions.append(f"{name}=?")
+    devices = jax.devices()
+    parts = [
+        f"format={FORMAT}",
+        sys.version,
+        platform.machine(),
+        *versions,
+        jax.default_backend(),
+        ",".join(f"{d.platform}:{d.device_kind}" for d in devices),
+        os.environ.get("XLA_FLAGS", ""),
+        str(jax.config.jax_enable_x64),  # pyright: ignore[reportAttributeAccessIssue]
+        _cpu_flags(),
+        _source_hash(),
+    ]
+    return "\n".join(parts).encode()
+
+
+def _cpu_flags() -> str:
+    """The host CPU's feature flags (XLA compiles for them), where the system tells them."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith(("flags", "Features")):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def _source_hash() -> str:
+    root = Path(__file__).parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+_KEYED_PACKAGES = ("jaxclear", *_PACKAGES, "jaxtyping", "numpy", "ml_dtypes")
+
+
+class _Unkeyed(Exception):
+    """The call refers to code whose changes the key would not see."""
+
+
+class _KeyPickler(pickle.Pickler):
+    """Pickles a call for its key; refuses code from outside the keyed packages and the standard
+    library (a user's driver function or contact law class: pickled by name only, so an edit to
+    it would not change the key)."""
+
+    def reducer_override(self, obj):
+        if isinstance(obj, type) or callable(obj) and hasattr(obj, "__module__"):
+            module = (getattr(obj, "__module__", None) or "").split(".")[0]
+            if module not in _KEYED_PACKAGES and module not in sys.stdlib_module_names:
+                raise _Unkeyed(f"{obj!r} from module {module!r}")
+            if getattr(obj, "__name__", "") == "<lambda>" or "<locals>" in getattr(
+                obj, "__qualname__", ""
+            ):
+                raise _Unkeyed(f"{obj!r} is not importable")
+        return NotImplemented
+
+
+def _key_bytes(call) -> bytes:
+    buffer = io.BytesIO()
+    _KeyPickler(buffer, protocol=5).dump(call)
+    return buffer.getvalue()
+
+
+class _Slot:
+    """Stands for the i-th array of a program's flat output in a stored output skeleton."""
+
+    def __init__(self, index: int):
+        self.index = index
+
+
+@dataclasses.dataclass(frozen=True)
+class _Aval:
+    """Stands for an argument array in a call's key: what its compiled program depends on."""
+
+    shape: tuple[int, ...]
+    dtype: str
+    weak_type: bool
+
+
+def _describe(x) -> _Aval:
+    return _Aval(tuple(x.shape), str(x.dtype), bool(getattr(x, "weak_type", False)))
+
+
+@contextlib.contextmanager
+def _nan_error_mode():
+    import equinox._errors as errors  # the module global equinox reads at trace time
+
+    saved = getattr(errors, "EQX_ON_ERROR")
+    setattr(errors, "EQX_ON_ERROR", "nan")
+    try:
+        yield
+    finally:
+        setattr(errors, "EQX_ON_ERROR", saved)
+
+
+class _Entry(NamedTuple):
+    compiled: Any  # jax.stages.Compiled, called with the flat list of the call's arrays
+    skeleton: Any  # the output with _Slot(i) for its i-th array
+
+
+class StoredJit:
+    """``eqx.filter_jit(fun)`` whose eager calls use the executable store when it is enabled."""
+
+    def __init__(self, fun: Callable):
+        self._fun = fun
+        self._jitted = eqx.filter_jit(fun)
+        self._loaded: dict[str, _Entry] = {}
+        functools.update_wrapper(self, fun)
+
+    def __call__(self, *args):
+        folder = compilation_cache_folder()
+        if folder is None or _staging():
+            return self._jitted(*args)
+        dynamic, static = eqx.partition(args, eqx.is_array)
+        leaves, in_def = jax.tree_util.tree_flatten(dynamic)
+        if any(isinstance(x, jax.core.Tracer) for x in leaves):
+            return self._jitted(*args)
+        try:
+            described = jax.tree_util.tree_unflatten(in_def, [_describe(x) for x in leaves])
+            call = _key_bytes(eqx.combine(described, static))
+        except Exception:  # code outside the key, or cannot be pickled: compile as usual
+            _counts["not_storable"] += 1
+            return self._jitted(*args)
+        key = hashlib.sha256(_environment() + self._fun.__qualname__.encode() + call).hexdigest()
+        entry = (
+            self._loaded.get(key)
+            or self._load(folder, key)
+            or self._build(folder, key, in_def, static, leaves)
+        )
+        self._loaded[key] = entry
+        out = entry.compiled(leaves)
+        return jax.tree_util.tree_map(
+            lambda s: out[s.index] if isinstance(s, _Slot) else s,
+            entry.skeleton,
+            is_leaf=lambda s: isinstance(s, _Slot),
+        )
+
+    def _path(self, folder: Path, key: str) -> Path:
+        return folder / f"{self._fun.__name__.strip('_')}-{key[:40]}.jaxclear"
+
+    def _load(self, folder: Path, key: str) -> "_Entry | None":
+        from jax.experimental import serialize_executable
+
+        path = self._path(folder, key)
+        if not path.exists():
+            return None
+        _initialize_lapack()
+        try:
+            payload, in_tree, out_tree, skeleton = pickle.loads(path.read_bytes())
+            compiled = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
+        except Exception:  # unreadable or from an incompatible build: compile it again
+            return None
+        with contextlib.suppress(OSError):
+            os.utime(path)  # recently used: kept longest by _evict
+        _counts["loaded"] += 1
+        return _Entry(compiled, skeleton)
+
+    def _build(self, folder: Path, key: str, in_def, static, leaves) -> _Entry:
+        from jax.experimental import serialize_executable
+
+        skeletons = []
+
+        def flat(leaves):
+            out = self._jitted(*eqx.combine(jax.tree_util.tree_unflatten(in_def, leaves), static))
+            dynamic, out_static = eqx.partition(out, eqx.is_array)
+            flat_out, out_def = jax.tree_util.tree_flatten(dynamic)
+            slots = jax.tree_util.tree_unflatten(out_def, [_Slot(i) for i in range(len(flat_out))])
+            skeletons.append(eqx.combine(slots, out_static, is_leaf=lambda s: isinstance(s, _Slot)))
+            return flat_out
+
+        flat.__name__ = self._fun.__name__  # names the program in JAX's own cache and profiles
+        with _nan_error_mode():
+            lowered = jax.jit(flat).lower(leaves)
+        compiled = lowered.compile()
+        _counts["compiled"] += 1
+        entry = _Entry(compiled, skeletons[0])
+        if "callback" in lowered.as_text():  # calls back into Python: cannot be stored
+            _counts["not_storable"] += 1
+            return entry
+        try:
+            payload, in_tree, out_tree = serialize_executable.serialize(compiled)
+            data = pickle.dumps((payload, in_tree, out_tree, entry.skeleton), protocol=5)
+        except Exception:
+            _counts["not_storable"] += 1
+            return entry
+        if _write(self._path(folder, key), data):
+            _counts["stored"] += 1
+            _evict(folder, MAX_BYTES)
+        return entry
+
+
+def _write(path: Path, data: bytes) -> bool:
+    """Write atomically (concurrent processes never read half an entry); a full or read-only disk
+    costs only the warm start. Returns whether the entry was written."""
+    try:
+        with tempfile.NamedTemporaryFile(dir=path.parent, delete=False, suffix=".tmp") as f:
+            f.write(data)
+        os.replace(f.name, path)
+        return True
+    except OSError:
+        with contextlib.suppress(OSError, NameError):
+            os.unlink(f.name)  # pyright: ignore[reportPossiblyUnboundVariable]
+        return False
+
+
+def _evict(folder: Path, max_bytes: int) -> None:
+    """Delete the least recently used entries until the store holds at most ``max_bytes``."""
+    with contextlib.suppress(OSError):
+        entries = sorted(
+            ((p.stat().st_mtime, p.stat().st_size, p) for p in folder.glob("*.jaxclear")),
+            reverse=True,
+        )
+        total = 0
+        for _, size, path in entries:
+            total += size
+            if total > max_bytes:
+                path.unlink(missing_ok=True)
+
+
+def stored_jit(fun: Callable) -> StoredJit:
+    """Decorator: ``eqx.filter_jit`` plus the on-disk store of ``enable_compilation_cache``."""
+    return StoredJit(fun)
+
+
+@functools.cache
+def _initialize_lapack() -> None:
+    """Load LAPACK's kernels into XLA, as lowering a linear solve does on CPU: a loaded program
+    that never went through lowering in this process would otherwise call null kernels (a
+    segmentation fault; jax's own ``jax.export`` does the same before calling an exported program).
+    """
+    jax.jit(jax.numpy.linalg.solve).lower(np.eye(2), np.ones(2))  # NumPy: no eager ops
+
+
+def _staging() -> bool:
+    """True while a transformation is being traced (operations on constants give tracers)."""
+    return isinstance(jax.numpy.zeros(()), jax.core.Tracer)

@@ -1,0 +1,157 @@
+"""The on-disk store of compiled programs (``jaxclear.enable_compilation_cache``).
+
+A loaded program must give exactly what a freshly compiled one gives, and a call the key cannot
+vouch for (a user's own function, a progress bar's host callback, a changed static setting, an
+unreadable entry) must never be served from the store. Entries are loaded here in the same
+process after forgetting the in-memory ones; tests/test_cli.py checks a second process.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxclear
+from jaxclear import _simulate
+from jaxclear.contact import LankaraniNikravesh
+from jaxclear.dynamics import _assembly
+from jaxclear.friction import ModifiedCoulomb
+from jaxclear.mechanisms import slider_crank
+
+HORIZON = 2e-3  # s: a sixth of a revolution at 5000 rpm; a few hundred steps with joint B
+NUM_POINTS = 5
+
+
+def _joint_b(clearance=5e-4):
+    """Joint B with Lankarani–Nikravesh contact and modified Coulomb friction (Tsit5: a smaller
+    program to compile than the default law's KenCarp4)."""
+    return slider_crank(
+        clearance_joints="B",
+        clearance=clearance,
+        contact_law=LankaraniNikravesh(),
+        friction_law=ModifiedCoulomb(friction_coefficient=0.01),
+    )
+
+
+def _entries(folder):
+    return sorted(p.name for p in folder.glob("*.jaxclear"))
+
+
+def _forget_loaded():
+    """Drop the programs held in memory, so the next call must go to the folder (or compile)."""
+    for stored in (
+        _simulate._simulate_core,
+        _simulate._INITIAL_STATE,
+        _assembly._assembly_diagnostics,
+    ):
+        stored._loaded.clear()
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """One folder for the file: its tests share entries (each new static setting compiles)."""
+    return tmp_path_factory.mktemp("store")
+
+
+@pytest.fixture
+def store(folder):
+    jaxclear.enable_compilation_cache(folder)
+    try:
+        yield folder
+    finally:
+        jaxclear.disable_compilation_cache()
+        _forget_loaded()
+
+
+def _arrays(traj):
+    return [np.asarray(x) for x in jax.tree_util.tree_leaves(traj) if hasattr(x, "shape")]
+
+
+def _compiles_during(call):
+    """Number of XLA compilations while ``call`` runs (``jax.monitoring`` events)."""
+    events = []
+
+    def listener(name, duration, **kwargs):
+        if name == "/jax/core/compile/backend_compile_duration":
+            events.append(duration)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        result = call()
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    return result, len(events)
+
+
+def test_a_loaded_program_gives_the_same_trajectory(store):
+    """Cold call: compiled and stored; after forgetting it in memory, the same call loads it from
+    the folder without compiling and returns bit-identical arrays, as does the same call with the
+    store off; new parameter values reuse the entry."""
+    cold = jaxclear.simulate(_joint_b(), HORIZON, num_points=NUM_POINTS)
+    stored = _entries(store)
+    assert any(name.startswith("simulate_core-") for name in stored), stored
+    _forget_loaded()
+    warm, compiles = _compiles_during(
+        lambda: jaxclear.simulate(_joint_b(), HORIZON, num_points=NUM_POINTS)
+    )
+    assert compiles == 0, "the stored program was compiled again instead of loaded"
+    assert _entries(store) == stored
+    for a, b in zip(_arrays(cold), _arrays(warm), strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert int(warm.num_steps) > 100 and bool(warm.succeeded)
+    other = jaxclear.simulate(_joint_b(4e-4), HORIZON, num_points=NUM_POINTS)
+    assert _entries(store) == stored
+    assert not np.array_equal(np.asarray(other.q), np.asarray(warm.q))
+    jaxclear.disable_compilation_cache()
+    plain = jaxclear.simulate(_joint_b(), HORIZON, num_points=NUM_POINTS)
+    for a, b in zip(_arrays(cold), _arrays(plain), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_an_unreadable_entry_is_compiled_again(store):
+    """Garbage in the assembly's entries: compiled again (same result) and the ideal slider–crank's
+    entry rewritten (the others, of test 1's mechanism, stay damaged)."""
+    m = slider_crank()
+    first = jaxclear.assemble(m)
+    damaged = sorted(store.glob("assembly_diagnostics-*.jaxclear"))
+    assert damaged
+    for path in damaged:
+        path.write_bytes(b"not a program")
+    _forget_loaded()
+    np.testing.assert_array_equal(np.asarray(first), np.asarray(jaxclear.assemble(m)))
+    assert sum(p.stat().st_size > 1000 for p in damaged) == 1
+
+
+def _driver_angle(t, parameters):
+    return parameters[0] * t
+
+
+def test_user_code_and_callbacks_are_never_stored(store):
+    """A user's driver function is pickled by name only (an edit would not change the key), and a
+    progress bar calls back into Python: neither call is stored, both still run."""
+    base = slider_crank()
+    driven = jaxclear.Mechanism(
+        bodies=base.bodies,
+        joints=base.joints,
+        driver=jaxclear.FunctionDriver(
+            "crank", function=_driver_angle, parameters=jnp.array([523.6])
+        ),
+        gravity=(0.0, 0.0),
+    )
+    before = _entries(store)
+    traj = jaxclear.simulate(driven, HORIZON, num_points=NUM_POINTS, solver="fast")
+    assert bool(traj.succeeded)
+    assert _entries(store) == before
+    jaxclear.simulate(base, HORIZON, num_points=NUM_POINTS, solver="fast", progress=True)
+    new = set(_entries(store)) - set(before)
+    assert not any(name.startswith("simulate_core-") for name in new), new
+
+
+def test_transformed_calls_bypass_the_store(store):
+    m = slider_crank()
+    before = _entries(store)
+    y = jax.jit(lambda c: jaxclear.simulate(m, c, num_points=NUM_POINTS, solver="fast").q[-1])(
+        HORIZON
+    )
+    assert np.all(np.isfinite(np.asarray(y)))
+    assert _entries(store) == before
