@@ -16,8 +16,10 @@ output points; run = median of ``--repeats`` calls after compilation). The table
   model and tolerances, each process pinned to one core of this 2-core machine; from the project's
   issue 13, **not measured by this script**: no SUNDIALS binding is installed here) and the ratios;
 - compile time of ``auto``'s solve, cold and warm: two more fresh processes sharing an empty
-  persistent compilation cache (ahead-of-time lower = trace, then XLA compile; warm = the XLA
-  executable found in the cache, tracing and lowering remain), as ``jaxclear run`` caches by default.
+  cache folder with both of ``jaxclear run``'s caches on (JAX's persistent compilation cache and
+  jaxclear's store of whole programs, ``jaxclear.enable_compilation_cache``), each timing an eager
+  ``simulate`` call's first call minus its later run time (assembly, tracing, lowering and XLA
+  compile when cold; loading the stored programs when warm).
 
 Like ``jaxclear run``, workers compile with XLA's CPU fusion emitters off unless ``--xla-default``.
 Figures only, no assertions; timings depend on the load (printed) and on ``--pin-cpu``.
@@ -111,7 +113,10 @@ def main():
         if not a.no_compile:
             with tempfile.TemporaryDirectory(prefix="jaxclear-cache-") as cache:
                 cold, warm = (
-                    _spawn(_job(case, auto, 1), dict(options, compile_cache=cache))
+                    _spawn(
+                        dict(_job(case, auto, 3), compile_method="first-call"),
+                        dict(options, compile_cache=cache, store=True),
+                    )
                     for _ in range(2)
                 )
         rows.append((case, auto, runs, cold, warm))

@@ -533,6 +533,10 @@ def main():
             jax.config.update("jax_compilation_cache_dir", job["compile_cache"])
             jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
             jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+            if job.get("store"):  # jaxclear's store of whole programs too, as `jaxclear run`
+                import jaxclear
+
+                jaxclear.enable_compilation_cache(job["compile_cache"])
         if job["kind"] == "jax":
             res = jax_worker(
                 job["case"],

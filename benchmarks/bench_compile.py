@@ -1,13 +1,18 @@
 """Compile time, cold and warm, with JAX's persistent compilation cache (issue 13, part 3).
 
-Each case runs twice in a fresh process sharing one empty cache folder: the first call is cold
-(trace, lower, XLA compile, a short solve), the second finds the XLA executable in the cache
-(trace and lower remain). The processes run as ``jaxclear run`` does: the cache folder set
-(``JAX_COMPILATION_CACHE_DIR``) and equinox's runtime checks in NaN mode (``EQX_ON_ERROR=nan``),
-without which JAX refuses to store the solve (diffrax checks its output times by host callbacks).
-A third process runs without the cache, for reference. Times are of the first call (its solve
-covers 1 % of a revolution: negligible), split by ``jax.monitoring`` into tracing, lowering and
-XLA compilation.
+Each case runs in fresh processes, one call each:
+- ``no cache``: no cache at all;
+- ``xla cold``/``xla warm``: JAX's persistent compilation cache only (``JAX_COMPILATION_CACHE_DIR``,
+  equinox's runtime checks in NaN mode, ``EQX_ON_ERROR=nan``, without which JAX refuses to store
+  the solve: diffrax checks its output times by host callbacks), first in an empty folder, then
+  again: the warm call skips XLA's compilation, tracing and lowering remain;
+- ``store cold``/``store warm``: as ``jaxclear run`` does, JAX's cache plus jaxclear's store of
+  whole compiled programs (``jaxclear.enable_compilation_cache``) in one empty folder: a warm
+  eager call loads the solve and its assembly without tracing. Calls under a transformation
+  (``batch``: vmap; ``grad``) are not served by the store: their rows equal the xla rows.
+
+Times are of the first call (its solve covers 1 % of a revolution: negligible), split by
+``jax.monitoring`` into tracing, lowering and XLA compilation.
 
     python benchmarks/bench_compile.py [--cases run,batch,grad] [--fast-compile]
 
@@ -63,6 +68,8 @@ from jaxclear.friction import ModifiedCoulomb
 events = {{}}
 monitoring.register_event_duration_secs_listener(
     lambda name, duration, **kw: events.__setitem__(name, events.get(name, 0.0) + duration))
+if {store!r}:
+    jaxclear.enable_compilation_cache({store!r})
 {setup}
 start = time.perf_counter()
 jax.block_until_ready(call())
@@ -76,7 +83,7 @@ print(json.dumps({{
 """
 
 
-def _child(case: str, cache: str | None, fast_compile: bool) -> dict:
+def _child(case: str, cache: str | None, fast_compile: bool, store: bool = False) -> dict:
     env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "EQX_ON_ERROR")}
     env.pop("JAX_COMPILATION_CACHE_DIR", None)
     if fast_compile:
@@ -84,7 +91,7 @@ def _child(case: str, cache: str | None, fast_compile: bool) -> dict:
     if cache is not None:
         env["JAX_COMPILATION_CACHE_DIR"] = cache
         env["EQX_ON_ERROR"] = "nan"
-    code = CHILD.format(setup=textwrap.dedent(CASES[case]))
+    code = CHILD.format(setup=textwrap.dedent(CASES[case]), store=cache if store else "")
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=900
     )
@@ -105,24 +112,24 @@ def main() -> None:
     if unknown:
         parser.error(f"--cases: unknown {unknown}; choose among {', '.join(CASES)}")
     print(f"fast compile: {'on' if args.fast_compile else 'off'}; seconds of the first call")
-    print(
-        f"{'case':6s} {'run':>9s} {'total':>7s} {'trace':>7s} {'lower':>7s} {'xla':>7s} {'stored':>7s}"
-    )
+    print(f"{'case':6s} {'run':>10s} {'total':>7s} {'trace':>7s} {'lower':>7s} {'xla':>7s}")
     for case in cases:
-        with tempfile.TemporaryDirectory() as cache:
-            runs = [
-                ("no cache", _child(case, None, args.fast_compile), None),
-                ("cold", _child(case, cache, args.fast_compile), None),
-            ]
-            stored = len(os.listdir(cache))
-            runs.append(("warm", _child(case, cache, args.fast_compile), stored))
-            for label, r, _ in runs:
+        with tempfile.TemporaryDirectory() as xla, tempfile.TemporaryDirectory() as store:
+            runs = [("no cache", _child(case, None, args.fast_compile))]
+            for label, folder, on in (("xla", xla, False), ("store", store, True)):
+                runs.append((f"{label} cold", _child(case, folder, args.fast_compile, on)))
+                runs.append((f"{label} warm", _child(case, folder, args.fast_compile, on)))
+            for label, r in runs:
                 print(
-                    f"{case:6s} {label:>9s} {r['total']:7.2f} {r['trace']:7.2f} {r['lower']:7.2f} "
-                    f"{r['xla']:7.2f} {'' if label != 'warm' else stored:>7}"
+                    f"{case:6s} {label:>10s} {r['total']:7.2f} {r['trace']:7.2f} "
+                    f"{r['lower']:7.2f} {r['xla']:7.2f}"
                 )
-            cold, warm = runs[1][1]["total"], runs[2][1]["total"]
-            print(f"{case:6s} warm/cold {warm / cold:.2f} ({stored} cache entries)")
+            totals = dict((label, r["total"]) for label, r in runs)
+            print(
+                f"{case:6s} warm/cold: xla {totals['xla warm'] / totals['xla cold']:.2f}, "
+                f"store {totals['store warm'] / totals['store cold']:.2f} "
+                f"({len(os.listdir(store))} files in the store's folder)"
+            )
 
 
 if __name__ == "__main__":

@@ -646,7 +646,8 @@ SETTINGS: tuple[Setting, ...] = (
         True,
         "",
         "keep compiled solves in a persistent cache (folder: $JAXCLEAR_CACHE_DIR, else "
-        "~/.cache/jaxclear/xla), so a later run of the same configuration skips XLA compilation",
+        "~/.cache/jaxclear/xla), so a later run of the same configuration loads them instead of "
+        "compiling",
         "--compilation-cache",
     ),
     # [output]
