@@ -111,6 +111,9 @@ def apply_compilation_cache(on: bool) -> str:
             return f"off (cannot create {str(path)!r}: {e.strerror or e})"
         folder = str(path)
         jax.config.update("jax_compilation_cache_dir", folder)
+    # every program, not only those over JAX's default 1 s of compile time: the command's ~50
+    # small ones (building the mechanism, outputs, statistics) took ~0.5 s per warm run
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     _set_error_mode("nan")
     try:
         jaxclear.enable_compilation_cache(folder)  # whole programs too: no tracing when warm
