@@ -15,6 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import jax
 import numpy as np
 import pytest
 
@@ -112,6 +113,25 @@ def clearance_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("clearance")
     assert cli.main(["run", *CHEAP_CLEARANCE, *SHORT, "--out", str(out)]) == 0
     return out
+
+
+def test_in_process_run_restores_global_settings(ideal_run, tmp_path):
+    """``jaxclear.cli.main`` called from Python undoes what the command sets for itself: the store
+    of compiled programs, equinox's NaN error mode and JAX's compile-time threshold."""
+    import equinox._errors as errors
+
+    before = (
+        jaxclear.compilation_cache_folder(),
+        getattr(errors, "EQX_ON_ERROR"),
+        jax.config.jax_persistent_cache_min_compile_time_secs,  # pyright: ignore[reportAttributeAccessIssue]
+    )
+    assert cli.main(["run", *IDEAL, *SHORT, "--no-plots", "--out", str(tmp_path / "o")]) == 0
+    after = (
+        jaxclear.compilation_cache_folder(),
+        getattr(errors, "EQX_ON_ERROR"),
+        jax.config.jax_persistent_cache_min_compile_time_secs,  # pyright: ignore[reportAttributeAccessIssue]
+    )
+    assert after == before
 
 
 def read_csv(path):

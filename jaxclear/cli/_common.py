@@ -113,6 +113,10 @@ def apply_compilation_cache(on: bool) -> str:
         jax.config.update("jax_compilation_cache_dir", folder)
     # every program, not only those over JAX's default 1 s of compile time: the command's ~50
     # small ones (building the mechanism, outputs, statistics) took ~0.5 s per warm run
+    if not _saved_min_compile_time:
+        _saved_min_compile_time.append(
+            jax.config.jax_persistent_cache_min_compile_time_secs  # pyright: ignore[reportAttributeAccessIssue]
+        )
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     _set_error_mode("nan")
     try:
@@ -123,6 +127,7 @@ def apply_compilation_cache(on: bool) -> str:
 
 
 _saved_error_mode: list[str] = []
+_saved_min_compile_time: list[float] = []
 
 
 def _set_error_mode(mode: str) -> None:
@@ -134,11 +139,17 @@ def _set_error_mode(mode: str) -> None:
 
 
 def restore_error_mode() -> None:
-    """Undo ``apply_compilation_cache``'s error mode and executable store (for ``jaxclear.cli.main``
-    called in-process)."""
+    """Undo ``apply_compilation_cache``'s error mode, executable store and compile-time threshold
+    (for ``jaxclear.cli.main`` called in-process; JAX's cache folder stays set: JAX reads it once)."""
     import jaxclear
 
     jaxclear.disable_compilation_cache()
+    if _saved_min_compile_time:
+        import jax
+
+        jax.config.update(
+            "jax_persistent_cache_min_compile_time_secs", _saved_min_compile_time.pop()
+        )
     if _saved_error_mode:
         import equinox._errors as errors
 
