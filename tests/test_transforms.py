@@ -464,7 +464,9 @@ def test_one_joint_jit_vmap_jacrev_equals_loop_and_central_differences(one_joint
     joint, ``slow``: tests/test_clearance_joint.py's ``test_batch_equals_loop``.)"""
     d = one_joint_derivatives
     direction = {k: jnp.asarray(1.0 if k == "clearance" else 0.0) for k in d["p"]}
-    for k, c in enumerate(CLEARANCES):
+    for k, c in enumerate(CLEARANCES.tolist()):
+        # Python floats, as in the fixture's parameters: a NumPy scalar (or a step computed from
+        # one) is not weakly typed, and the jitted solve would compile twice more (~5 s)
         p = {**d["p"], "clearance": jnp.asarray(c)}
         np.testing.assert_allclose(
             np.asarray(d["mapped_values"][k]), np.asarray(d["f"](p)), rtol=SAME_RTOL
