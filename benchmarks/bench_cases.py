@@ -11,6 +11,8 @@ c: O, A, B, L-N, LuGre) every method runs in its own process (``bench_clearance.
 output points; run = median of ``--repeats`` calls after compilation). The table gives, per case:
 
 - the method ``auto`` picks (``jaxclear.recommended_solver``) and its run time, steps and µs/step;
+- ``bare``: ``auto``'s run time with ``extremes=False`` (no per-step observations: the same work
+  as the CVODES reference, which integrates the equations only);
 - the fastest of ``--methods`` (``auto``'s included) and its run time;
 - the SUNDIALS CVODES figure the run is read against (BDF with a compiled C right-hand side, same
   model and tolerances, each process pinned to one core of this 2-core machine; from the project's
@@ -109,6 +111,13 @@ def main():
                 + ("" if r["succeeded"] else f", FAILED at t = {r['t_final']:.3g} s")
             )
             print(f"case {case} {method:<13} {status}  (load {r['load']:.2f})", flush=True)
+        bare = _spawn(dict(_job(case, auto, a.repeats), extremes=False), options)
+        if "skipped" not in bare:
+            print(
+                f"case {case} {auto:<13} without extremes: run {bare['run_s']:.3f} s, "
+                f"{bare['steps']} steps  (load {bare['load']:.2f})",
+                flush=True,
+            )
         cold = warm = None
         if not a.no_compile:
             with tempfile.TemporaryDirectory(prefix="jaxclear-cache-") as cache:
@@ -119,14 +128,15 @@ def main():
                     )
                     for _ in range(2)
                 )
-        rows.append((case, auto, runs, cold, warm))
+        rows.append((case, auto, runs, bare, cold, warm))
 
     ok = lambda r: r is not None and "skipped" not in r and r["succeeded"]  # noqa: E731
     print(
         f"\n{'case':<5}{'auto':<14}{'run s':>7}{'steps':>7}{'us/step':>8}  {'fastest':<14}{'run s':>7}"
-        f"  {'CVODES s':>8}{'auto/CV':>8}{'fast/CV':>8}  {'compile cold':>12}{'warm':>6}"
+        f"  {'CVODES s':>8}{'auto/CV':>8}{'fast/CV':>8}  {'bare s':>7}{'bare/CV':>8}"
+        f"  {'compile cold':>12}{'warm':>6}"
     )
-    for case, auto, runs, cold, warm in rows:
+    for case, auto, runs, bare, cold, warm in rows:
         done = {m: r for m, r in runs.items() if ok(r)}
         if auto not in done or not done:
             print(f"{case:<5}{auto:<14} failed or skipped")
@@ -134,6 +144,9 @@ def main():
         r = done[auto]
         best = min(done, key=lambda m: done[m]["run_s"])
         cv = CVODES_S[case]
+        bare_text = (
+            f"{bare['run_s']:7.3f}{bare['run_s'] / cv:8.2f}" if ok(bare) else f"{'-':>7}{'-':>8}"
+        )
         compile_text = (
             f"{cold['compile_s']:11.1f}s{warm['compile_s']:5.1f}s"
             if ok(cold) and ok(warm)
@@ -142,7 +155,7 @@ def main():
         print(
             f"{case:<5}{auto:<14}{r['run_s']:7.3f}{r['steps']:7d}{1e6 * r['run_s'] / r['steps']:8.1f}  "
             f"{best:<14}{done[best]['run_s']:7.3f}  {cv:8.3f}{r['run_s'] / cv:8.2f}"
-            f"{done[best]['run_s'] / cv:8.2f}  {compile_text}"
+            f"{done[best]['run_s'] / cv:8.2f}  {bare_text}  {compile_text}"
         )
     print(f"\nfinal load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 

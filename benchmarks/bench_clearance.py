@@ -138,6 +138,7 @@ def jax_worker(
     rhs_cost,
     run_budget,
     first_contact=None,
+    extremes=True,
 ):
     t_import = time.perf_counter()
     import jax
@@ -161,7 +162,9 @@ def jax_worker(
         y0 = jaxclear.assemble(mech, 0.0)
 
         def solve(mech, ts, t1, y0):
-            return jaxclear.simulate(mech, t1, ts=ts, y0=y0, solver=config, throw=False)
+            return jaxclear.simulate(
+                mech, t1, ts=ts, y0=y0, solver=config, throw=False, extremes=extremes
+            )
 
         args = (mech, jnp.asarray(ts), jnp.asarray(t1), y0)
         t0 = time.perf_counter()
@@ -177,7 +180,9 @@ def jax_worker(
     else:
 
         def call():
-            return block(jaxclear.simulate(mech, t1, ts=ts, solver=config, throw=False))
+            return block(
+                jaxclear.simulate(mech, t1, ts=ts, solver=config, throw=False, extremes=extremes)
+            )
 
     runs = []
     t0 = time.perf_counter()
@@ -548,6 +553,7 @@ def main():
                 job["rhs_cost"],
                 job["run_budget"],
                 job.get("first_contact"),
+                job.get("extremes", True),
             )
         elif job["kind"] == "fcref":
             res = first_contact_reference(job["case"], job["path"])
