@@ -233,13 +233,23 @@ class StoredJit:
             _counts["not_storable"] += 1
             return self._jitted(*args)
         key = hashlib.sha256(_environment() + self._fun.__qualname__.encode() + call).hexdigest()
-        entry = (
-            self._loaded.get(key)
-            or self._load(folder, key)
-            or self._build(folder, key, in_def, static, leaves)
-        )
-        self._loaded[key] = entry
-        out = entry.compiled(leaves)
+        entry = self._loaded.get(key)
+        if entry is None:
+            entry = self._load(folder, key)
+            if entry is not None:
+                try:
+                    out = entry.compiled(leaves)
+                except jax.errors.JaxRuntimeError:  # loads but cannot run here: compile it again
+                    entry = None
+                else:
+                    self._loaded[key] = entry
+                    return self._unflatten(entry, out)
+            entry = self._build(folder, key, in_def, static, leaves)
+            self._loaded[key] = entry
+        return self._unflatten(entry, entry.compiled(leaves))
+
+    @staticmethod
+    def _unflatten(entry: _Entry, out):
         return jax.tree_util.tree_map(
             lambda s: out[s.index] if isinstance(s, _Slot) else s,
             entry.skeleton,

@@ -16,9 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import jaxclear.cli._ensemble_common
 from jaxclear import cli
 from jaxclear.analysis import fit_clearance
 from jaxclear.analysis._ensemble import DEFAULT_CONTINUOUS_FRACTION
+from jaxclear.cli._common import NOT_APPLIED
 from jaxclear.cli._config import resolve_settings
 from jaxclear.cli._ensemble_common import DEVICE_COUNT_FLAG, apply_device_count
 from jaxclear.cli._main import build_parser
@@ -320,6 +322,12 @@ def test_help(capsys):
 
 
 def test_device_count_flag(monkeypatch):
+    """Before JAX starts the flag is added to XLA_FLAGS; after (this test process), the variable is
+    left alone: it would not change the running backend, only JAX's cache keys."""
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_use_fusion_emitters=false")
+    assert apply_device_count(5) == NOT_APPLIED
+    assert os.environ["XLA_FLAGS"] == "--xla_cpu_use_fusion_emitters=false"
+    monkeypatch.setattr(jaxclear.cli._ensemble_common, "backend_started", lambda: False)
     monkeypatch.setenv("XLA_FLAGS", f"{DEVICE_COUNT_FLAG}=3")
     assert apply_device_count(8) == "set by XLA_FLAGS"  # the user's own flag wins
     assert os.environ["XLA_FLAGS"] == f"{DEVICE_COUNT_FLAG}=3"

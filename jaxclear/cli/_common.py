@@ -33,28 +33,51 @@ FAST_COMPILE_FLAG = "--xla_cpu_use_fusion_emitters=false"
 longer runs (Tsit5, three clearance joints; see the ``fast_compile`` setting)."""
 
 
+NOT_APPLIED = "not applied: JAX had started (XLA_FLAGS is read once, at its start)"
+"""What ``apply_fast_compile`` and ``apply_device_count`` return in a process whose JAX backend had
+already started (``jaxclear.cli.main`` called from Python)."""
+
+
+def backend_started() -> bool:
+    """Whether this process's JAX backend has started (XLA has read ``XLA_FLAGS``).
+
+    Read from JAX's private ``xla_bridge.backends_are_initialized`` (no public query exists); if
+    that is gone, ``False``, as before this check existed.
+    """
+    try:
+        from jax._src import xla_bridge
+
+        return bool(xla_bridge.backends_are_initialized())
+    except (ImportError, AttributeError):  # pragma: no cover - another JAX version
+        return False
+
+
 def apply_fast_compile(on: bool) -> str:
     """Add ``FAST_COMPILE_FLAG`` to the ``XLA_FLAGS`` environment variable if ``on``.
 
     XLA reads ``XLA_FLAGS`` once, when JAX's backend starts, i.e. when the process makes its first
     array. Importing ``jaxclear`` makes none (``tests/test_cli.py`` checks this in a fresh process),
     so the ``jaxclear`` command, which calls this before any JAX computation, always gets the flag.
-    JAX has no public query for "has the backend started", so this function does not guess: called
-    through ``jaxclear.cli.main([...])`` from a Python process that already ran JAX computations,
-    the variable is still set but has no effect on that process.
+    Called through ``jaxclear.cli.main([...])`` from a Python process whose backend has started
+    (``backend_started``), the variable is left alone: it would not change the running backend,
+    but JAX's compilation cache keys (and jaxclear's store of programs) include it, and programs
+    compiled without the flag would be stored under keys that claim it (loading such a program in
+    a process that has the flag fails: "Function ... not found").
 
     Args:
         on: whether the flag is wanted (``[solver] fast_compile``).
 
     Returns:
-        For run.json: ``"on"``, ``"off"``, or ``"set by XLA_FLAGS"`` when the user's own ``XLA_FLAGS``
-        already decides it.
+        For run.json: ``"on"``, ``"off"``, ``"set by XLA_FLAGS"`` when the user's own ``XLA_FLAGS``
+        already decides it, or ``NOT_APPLIED``.
     """
     flags = os.environ.get("XLA_FLAGS", "")
     if "xla_cpu_use_fusion_emitters" in flags:
         return "set by XLA_FLAGS"
     if not on:
         return "off"
+    if backend_started():
+        return NOT_APPLIED
     os.environ["XLA_FLAGS"] = f"{flags} {FAST_COMPILE_FLAG}".strip()
     return "on"
 

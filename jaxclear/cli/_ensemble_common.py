@@ -26,11 +26,13 @@ from ..analysis._ensemble import (
     EnsembleError,
 )
 from ._common import (
+    NOT_APPLIED,
     PROG,
     RunError,
     UsageError,
     apply_compilation_cache,
     apply_fast_compile,
+    backend_started,
     one_line,
 )
 from ._config import Settings, resolve_settings
@@ -85,18 +87,20 @@ def apply_device_count(devices: int | None) -> str:
 
     Like ``apply_fast_compile``, this must run before JAX's backend starts (the process's first
     array); called later (``jaxclear.cli.main([...])`` from a process that already computed with
-    JAX) it sets the variable without effect, and the devices that exist are used.
+    JAX) it leaves the variable alone (``NOT_APPLIED``), and the devices that exist are used.
 
     Args:
         devices: the number wanted (``--devices``), or ``None`` for every usable core.
 
     Returns:
         For the JSON summary: the flag as set, or ``"set by XLA_FLAGS"`` when the user's own
-        ``XLA_FLAGS`` already sets it (then it wins).
+        ``XLA_FLAGS`` already sets it (then it wins), or ``NOT_APPLIED``.
     """
     flags = os.environ.get("XLA_FLAGS", "")
     if DEVICE_COUNT_FLAG.lstrip("-") in flags:
         return "set by XLA_FLAGS"
+    if backend_started():
+        return NOT_APPLIED
     flag = f"{DEVICE_COUNT_FLAG}={devices or usable_cores()}"
     os.environ["XLA_FLAGS"] = f"{flags} {flag}".strip()
     return flag
