@@ -6,10 +6,11 @@ Each case runs in fresh processes, one call each:
   equinox's runtime checks in NaN mode, ``EQX_ON_ERROR=nan``, without which JAX refuses to store
   the solve: diffrax checks its output times by host callbacks), first in an empty folder, then
   again: the warm call skips XLA's compilation, tracing and lowering remain;
-- ``store cold``/``store warm``: as ``jaxclear run`` does, JAX's cache plus jaxclear's store of
-  whole compiled programs (``jaxclear.enable_compilation_cache``) in one empty folder: a warm
+- ``store cold``/``store warm``: as ``jaxclear run`` does, JAX's cache (every program stored,
+  however short its compile) plus jaxclear's store of whole compiled programs
+  (``jaxclear.enable_compilation_cache``) in one empty folder: a warm
   eager call loads the solve and its assembly without tracing. Calls under a transformation
-  (``batch``: vmap; ``grad``) are not served by the store: their rows equal the xla rows.
+  (``batch``: vmap; ``grad``) are not served by the store, only by JAX's cache.
 
 Times are of the first call (its solve covers 1 % of a revolution: negligible), split by
 ``jax.monitoring`` into tracing, lowering and XLA compilation.
@@ -70,6 +71,7 @@ monitoring.register_event_duration_secs_listener(
     lambda name, duration, **kw: events.__setitem__(name, events.get(name, 0.0) + duration))
 if {store!r}:
     jaxclear.enable_compilation_cache({store!r})
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # as jaxclear run
 {setup}
 start = time.perf_counter()
 jax.block_until_ready(call())
