@@ -14,6 +14,12 @@ The key (SHA-256) covers:
 - the versions of Python, jax, jaxlib, diffrax, equinox, lineax and optimistix; the backend,
   its devices and the host CPU's feature flags; ``XLA_FLAGS``; the x64 setting.
 
+JAX's persistent cache may share the folder (``jaxclear run`` sets it so), but never holds the
+store's programs: an executable JAX hands back from its cache cannot be serialized again (its
+kernels are missing from the copy, which fails when run: "Function ... not found"). The store's
+programs therefore have names of their own, are compiled with JAX's cache writes off, and one JAX
+still served from its cache is used but not stored.
+
 Only eager calls are served (under a transformation the arguments are tracers and the call is the
 ordinary ``eqx.filter_jit``). A program that calls back into Python (a progress bar) cannot be
 stored and is compiled as usual. Equinox's runtime checks are traced in NaN mode here
@@ -193,6 +199,25 @@ def _describe(x) -> _Aval:
 
 
 @contextlib.contextmanager
+def _jax_cache_hits():
+    """Within: JAX's persistent cache writes nothing; yields a list that records its hits."""
+    hits = []
+
+    def listener(event, **kwargs):
+        if event == "/jax/compilation_cache/cache_hits":
+            hits.append(event)
+
+    saved = jax.config.jax_persistent_cache_min_compile_time_secs  # pyright: ignore[reportAttributeAccessIssue]
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float("inf"))
+    jax.monitoring.register_event_listener(listener)
+    try:
+        yield hits
+    finally:
+        jax.monitoring.unregister_event_listener(listener)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", saved)
+
+
+@contextlib.contextmanager
 def _nan_error_mode():
     import equinox._errors as errors  # the module global equinox reads at trace time
 
@@ -237,8 +262,8 @@ class StoredJit:
         if entry is None:
             entry = self._load(folder, key)
             if entry is not None:
-                try:
-                    out = entry.compiled(leaves)
+                try:  # wait for the first run: a program that cannot run here fails in it
+                    out = jax.block_until_ready(entry.compiled(leaves))
                 except jax.errors.JaxRuntimeError:  # loads but cannot run here: compile it again
                     entry = None
                 else:
@@ -289,11 +314,19 @@ class StoredJit:
             skeletons.append(eqx.combine(slots, out_static, is_leaf=lambda s: isinstance(s, _Slot)))
             return flat_out
 
-        flat.__name__ = self._fun.__name__  # names the program in JAX's own cache and profiles
+        # A program JAX's persistent cache hands back cannot be serialized again (its kernels are
+        # missing from the copy: "Function ... not found" when the copy runs). So the store's
+        # programs have names of their own (their own keys in JAX's cache), JAX does not write
+        # them to its cache, and a program JAX still served from its cache is not stored.
+        flat.__name__ = f"{self._fun.__name__.strip('_')}_stored_{key[:16]}"
         with _nan_error_mode():
             lowered = jax.jit(flat).lower(leaves)
-        compiled = lowered.compile()
+        with _jax_cache_hits() as hits:
+            compiled = lowered.compile()
         _counts["compiled"] += 1
+        if hits:
+            _counts["not_storable"] += 1
+            return _Entry(compiled, skeletons[0])
         entry = _Entry(compiled, skeletons[0])
         if "callback" in lowered.as_text():  # calls back into Python: cannot be stored
             _counts["not_storable"] += 1

@@ -6,6 +6,9 @@ unreadable entry) must never be served from the store. Entries are loaded here i
 process after forgetting the in-memory ones; tests/test_cli.py checks a second process.
 """
 
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -155,3 +158,41 @@ def test_transformed_calls_bypass_the_store(store):
     )
     assert np.all(np.isfinite(np.asarray(y)))
     assert _entries(store) == before
+
+
+ASSEMBLE = """
+import sys, jax, numpy as np
+jax.config.update("jax_compilation_cache_dir", sys.argv[1])
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+import jaxclear
+jaxclear.enable_compilation_cache(sys.argv[1])
+y0 = np.asarray(jaxclear.assemble(jaxclear.mechanisms.slider_crank()))
+print(repr(y0.tolist()), jaxclear.compilation_cache_statistics()["loaded"])
+"""
+
+
+def test_beside_jax_persistent_cache(tmp_path):
+    """JAX's persistent cache in the same folder (as ``jaxclear run`` sets it up), in fresh
+    processes: a program JAX hands back from its cache cannot be serialized again, so the store's
+    programs must never come from there. Cold, then with the store's entries deleted (JAX's cache
+    kept), then warm: every process gets the same state, the last one from loaded programs."""
+
+    def assemble():
+        result = subprocess.run(
+            [sys.executable, "-c", ASSEMBLE, str(tmp_path)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert result.returncode == 0, result.stderr
+        state, loaded = result.stdout.strip().rsplit(" ", 1)
+        return state, int(loaded)
+
+    cold, loaded = assemble()
+    assert loaded == 0 and list(tmp_path.glob("*.jaxclear"))
+    for path in tmp_path.glob("*.jaxclear"):
+        path.unlink()
+    again, loaded = assemble()
+    assert (again, loaded) == (cold, 0)
+    warm, loaded = assemble()
+    assert warm == cold and loaded >= 2
