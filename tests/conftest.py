@@ -16,6 +16,7 @@ LONGEST_FIRST = (
     "test_gradient_settings.py",
     "test_optimize.py",
     "test_cli.py",
+    "test_executable_cache.py",
     "test_clearance_joint.py",
     "test_force_elements.py",
     "test_statistics.py",

@@ -16,24 +16,18 @@ import pytest
 
 import jaxclear
 from jaxclear import _simulate
-from jaxclear.contact import LankaraniNikravesh
 from jaxclear.dynamics import _assembly
-from jaxclear.friction import ModifiedCoulomb
 from jaxclear.mechanisms import slider_crank
 
-HORIZON = 2e-3  # s: a sixth of a revolution at 5000 rpm; a few hundred steps with joint B
+HORIZON = 2e-3  # s: a sixth of a revolution at 5000 rpm
 NUM_POINTS = 5
 
 
-def _joint_b(clearance=5e-4):
-    """Joint B with Lankarani–Nikravesh contact and modified Coulomb friction (Tsit5: a smaller
-    program to compile than the default law's KenCarp4)."""
-    return slider_crank(
-        clearance_joints="B",
-        clearance=clearance,
-        contact_law=LankaraniNikravesh(),
-        friction_law=ModifiedCoulomb(friction_coefficient=0.01),
-    )
+def _mechanism(rpm=5000.0):
+    """The ideal benchmark slider–crank: the store's code paths (assembly, initial state, solve
+    with extremes) at the smallest compile cost; the clearance joints' solve goes through the same
+    code and is stored by tests/test_cli.py's fresh processes."""
+    return slider_crank(rpm=rpm)
 
 
 def _entries(folder):
@@ -58,6 +52,9 @@ def folder(tmp_path_factory):
 
 @pytest.fixture
 def store(folder):
+    """The store on, in the file's folder, with nothing in memory (an in-process CLI test before
+    this one, in the same worker, may have loaded the same programs from another folder)."""
+    _forget_loaded()
     jaxclear.enable_compilation_cache(folder)
     try:
         yield folder
@@ -74,32 +71,31 @@ def test_a_loaded_program_gives_the_same_trajectory(store):
     """Cold call: compiled and stored; after forgetting it in memory, the same call loads its
     programs from the folder (none compiled) and returns bit-identical arrays, as does the same call with the
     store off; new parameter values reuse the entry."""
-    cold = jaxclear.simulate(_joint_b(), HORIZON, num_points=NUM_POINTS)
+    cold = jaxclear.simulate(_mechanism(), HORIZON, num_points=NUM_POINTS)
     stored = _entries(store)
     assert any(name.startswith("simulate_core-") for name in stored), stored
     _forget_loaded()
     counts = jaxclear.compilation_cache_statistics()
-    warm = jaxclear.simulate(_joint_b(), HORIZON, num_points=NUM_POINTS)
+    warm = jaxclear.simulate(_mechanism(), HORIZON, num_points=NUM_POINTS)
     after = jaxclear.compilation_cache_statistics()
     assert after["compiled"] == counts["compiled"], "compiled again instead of loaded"
     assert after["loaded"] == counts["loaded"] + 3  # assembly, initial state, solve
     assert _entries(store) == stored
     for a, b in zip(_arrays(cold), _arrays(warm), strict=True):
         np.testing.assert_array_equal(a, b)
-    assert int(warm.num_steps) > 100 and bool(warm.succeeded)
-    other = jaxclear.simulate(_joint_b(4e-4), HORIZON, num_points=NUM_POINTS)
+    assert int(warm.num_steps) > 0 and bool(warm.succeeded)
+    other = jaxclear.simulate(_mechanism(rpm=4000.0), HORIZON, num_points=NUM_POINTS)
     assert _entries(store) == stored
     assert not np.array_equal(np.asarray(other.q), np.asarray(warm.q))
     jaxclear.disable_compilation_cache()
-    plain = jaxclear.simulate(_joint_b(), HORIZON, num_points=NUM_POINTS)
+    plain = jaxclear.simulate(_mechanism(), HORIZON, num_points=NUM_POINTS)
     for a, b in zip(_arrays(cold), _arrays(plain), strict=True):
         np.testing.assert_array_equal(a, b)
 
 
 def test_an_unreadable_entry_is_compiled_again(store):
-    """Garbage in the assembly's entries: compiled again (same result) and the ideal slider–crank's
-    entry rewritten (the others, of test 1's mechanism, stay damaged)."""
-    m = slider_crank()
+    """Garbage in the assembly's entries: compiled again (same result) and rewritten."""
+    m = _mechanism()
     first = jaxclear.assemble(m)
     damaged = sorted(store.glob("assembly_diagnostics-*.jaxclear"))
     assert damaged
@@ -107,7 +103,7 @@ def test_an_unreadable_entry_is_compiled_again(store):
         path.write_bytes(b"not a program")
     _forget_loaded()
     np.testing.assert_array_equal(np.asarray(first), np.asarray(jaxclear.assemble(m)))
-    assert sum(p.stat().st_size > 1000 for p in damaged) == 1
+    assert all(p.stat().st_size > 1000 for p in damaged)
 
 
 def _driver_angle(t, parameters):
@@ -117,7 +113,7 @@ def _driver_angle(t, parameters):
 def test_user_code_and_callbacks_are_never_stored(store):
     """A user's driver function is pickled by name only (an edit would not change the key), and a
     progress bar calls back into Python: neither call is stored, both still run."""
-    base = slider_crank()
+    base = _mechanism()
     driven = jaxclear.Mechanism(
         bodies=base.bodies,
         joints=base.joints,
@@ -136,7 +132,7 @@ def test_user_code_and_callbacks_are_never_stored(store):
 
 
 def test_transformed_calls_bypass_the_store(store):
-    m = slider_crank()
+    m = _mechanism()
     before = _entries(store)
     y = jax.jit(lambda c: jaxclear.simulate(m, c, num_points=NUM_POINTS, solver="fast").q[-1])(
         HORIZON
