@@ -38,6 +38,7 @@ import pickle
 import platform
 import sys
 import tempfile
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -57,6 +58,7 @@ upgrade makes new ones)."""
 
 _folder: list[Path] = []  # the enabled folder, if any (a list: module state without `global`)
 _counts = {"loaded": 0, "stored": 0, "compiled": 0, "not_storable": 0}
+_instances: "weakref.WeakSet[StoredJit]" = weakref.WeakSet()
 
 _PACKAGES = ("jax", "jaxlib", "diffrax", "equinox", "lineax", "optimistix")
 
@@ -71,6 +73,9 @@ def enable_compilation_cache(folder: "str | os.PathLike[str]") -> Path:
     are keyed on the call's static structure, jaxclear's source and the installed versions, so
     a stale entry is never used; delete the folder to reclaim its space.
 
+    Calling it again (with any folder) also drops the programs this process holds in memory, so
+    that the next calls read them from the folder.
+
     Args:
         folder: where compiled programs are written (created if missing).
 
@@ -83,6 +88,8 @@ def enable_compilation_cache(folder: "str | os.PathLike[str]") -> Path:
     path = Path(folder).expanduser()
     path.mkdir(parents=True, exist_ok=True)
     _folder[:] = [path]
+    for stored in _instances:  # from now on programs come from this folder (or are compiled)
+        stored._loaded.clear()
     return path
 
 
@@ -130,12 +137,10 @@ def _environment() -> bytes:
 
 def _cpu_flags() -> str:
     """The host CPU's feature flags (XLA compiles for them), where the system tells them."""
-    try:
+    with contextlib.suppress(OSError):
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith(("flags", "Features")):
                 return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
     return platform.processor()
 
 
@@ -242,6 +247,7 @@ class StoredJit:
         self._jitted = eqx.filter_jit(fun)
         self._loaded: dict[str, _Entry] = {}
         functools.update_wrapper(self, fun)
+        _instances.add(self)
 
     def __call__(self, *args):
         folder = compilation_cache_folder()

@@ -15,8 +15,6 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear import _simulate
-from jaxclear.dynamics import _assembly
 from jaxclear.mechanisms import slider_crank
 
 HORIZON = 2e-3  # s: a sixth of a revolution at 5000 rpm
@@ -34,14 +32,10 @@ def _entries(folder):
     return sorted(p.name for p in folder.glob("*.jaxclear"))
 
 
-def _forget_loaded():
-    """Drop the programs held in memory, so the next call must go to the folder (or compile)."""
-    for stored in (
-        _simulate._simulate_core,
-        _simulate._INITIAL_STATE,
-        _assembly._assembly_diagnostics,
-    ):
-        stored._loaded.clear()
+def _forget_loaded(folder):
+    """Drop the programs held in memory (``enable_compilation_cache`` does), so the next call must
+    go to the folder (or compile)."""
+    jaxclear.enable_compilation_cache(folder)
 
 
 @pytest.fixture(scope="module")
@@ -54,13 +48,11 @@ def folder(tmp_path_factory):
 def store(folder):
     """The store on, in the file's folder, with nothing in memory (an in-process CLI test before
     this one, in the same worker, may have loaded the same programs from another folder)."""
-    _forget_loaded()
     jaxclear.enable_compilation_cache(folder)
     try:
         yield folder
     finally:
         jaxclear.disable_compilation_cache()
-        _forget_loaded()
 
 
 def _arrays(traj):
@@ -74,7 +66,7 @@ def test_a_loaded_program_gives_the_same_trajectory(store):
     cold = jaxclear.simulate(_mechanism(), HORIZON, num_points=NUM_POINTS)
     stored = _entries(store)
     assert any(name.startswith("simulate_core-") for name in stored), stored
-    _forget_loaded()
+    _forget_loaded(store)
     counts = jaxclear.compilation_cache_statistics()
     warm = jaxclear.simulate(_mechanism(), HORIZON, num_points=NUM_POINTS)
     after = jaxclear.compilation_cache_statistics()
@@ -101,7 +93,7 @@ def test_an_unreadable_entry_is_compiled_again(store):
     assert damaged
     for path in damaged:
         path.write_bytes(b"not a program")
-    _forget_loaded()
+    _forget_loaded(store)
     np.testing.assert_array_equal(np.asarray(first), np.asarray(jaxclear.assemble(m)))
     assert all(p.stat().st_size > 1000 for p in damaged)
 
