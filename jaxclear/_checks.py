@@ -17,6 +17,12 @@ def is_concrete(x) -> bool:
     return not isinstance(x, jax.core.Tracer)
 
 
+def staging() -> bool:
+    """True while a ``jax.jit`` (or another staging transformation) is being traced: operations
+    on constants then give tracers too, and nothing can be checked or raised on values."""
+    return isinstance(jax.numpy.zeros(()), jax.core.Tracer)
+
+
 def _fail(owner: str, name: str, requirement: str, value, unit: str, fix: str):
     raise ModelError(
         f"{owner}: {name} must be {requirement}, got {value}{(' ' + unit) if unit else ''}; {fix}."

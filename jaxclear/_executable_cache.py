@@ -48,6 +48,8 @@ import jax
 import jax.core  # jax.core.Tracer (jax imports it itself; named for type checkers)
 import numpy as np
 
+from ._checks import staging
+
 FORMAT = 1
 """Layout of a stored entry; part of the key."""
 
@@ -251,7 +253,7 @@ class StoredJit:
 
     def __call__(self, *args):
         folder = compilation_cache_folder()
-        if folder is None or _staging():
+        if folder is None or staging():
             return self._jitted(*args)
         dynamic, static = eqx.partition(args, eqx.is_array)
         leaves, in_def = jax.tree_util.tree_flatten(dynamic)
@@ -389,8 +391,3 @@ def _initialize_lapack() -> None:
     segmentation fault; jax's own ``jax.export`` does the same before calling an exported program).
     """
     jax.jit(jax.numpy.linalg.solve).lower(np.eye(2), np.ones(2))  # NumPy: no eager ops
-
-
-def _staging() -> bool:
-    """True while a transformation is being traced (operations on constants give tracers)."""
-    return isinstance(jax.numpy.zeros(()), jax.core.Tracer)

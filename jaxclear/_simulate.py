@@ -12,7 +12,7 @@ import numpy as np
 from jax.interpreters import ad
 from jaxtyping import ArrayLike
 
-from ._checks import is_concrete
+from ._checks import is_concrete, staging
 from ._errors import AssemblyError, ModelError, SimulationError
 from ._executable_cache import stored_jit
 from ._extremes import ExtremesTracking, Observation
@@ -306,15 +306,9 @@ def _time_grid(t0, t1, ts, num_points):
     return jnp.asarray(ts)
 
 
-def _staging() -> bool:
-    """True while a ``jax.jit`` (or another staging transformation) is being traced: operations
-    on constants then give tracers too, and nothing can be checked or raised on values."""
-    return isinstance(jnp.zeros(()), jax.core.Tracer)
-
-
 def _is_traced(tree) -> bool:
     leaves = jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
-    return _staging() or any(isinstance(x, jax.core.Tracer) for x in leaves)
+    return staging() or any(isinstance(x, jax.core.Tracer) for x in leaves)
 
 
 def simulate(
