@@ -3,6 +3,7 @@
 Usage:
     python benchmarks/bench_cases.py [--cases a,b,c] [--methods lawson-tsit5,tsit5,kencarp5]
                                      [--repeats 3] [--pin-cpu K] [--xla-default] [--no-compile]
+                                     [--cvodes auto|measure|quote] [--cvodes-jit]
 
 For each case of ``bench_clearance.py`` (benchmark slider–crank, 5000 rpm, 2 revolutions,
 c = 0.5 mm, rtol 1e-6, atol 1e-9; a: joint B, L-N, modified Coulomb; b: O, A, B, same laws;
@@ -14,9 +15,12 @@ output points; run = median of ``--repeats`` calls after compilation). The table
 - ``bare``: ``auto``'s run time with ``extremes=False`` (no per-step observations: the same work
   as the CVODES reference, which integrates the equations only);
 - the fastest of ``--methods`` (``auto``'s included) and its run time;
-- the SUNDIALS CVODES figure the run is read against (BDF with a compiled C right-hand side, same
-  model and tolerances, each process pinned to one core of this 2-core machine; from the project's
-  issue 13, **not measured by this script**: no SUNDIALS binding is installed here) and the ratios;
+- the SUNDIALS CVODES figure the run is read against and the ratios: **measured in this run**
+  when CasADi is installed (``pip install casadi``; ``cvodes_reference.py``: CVODES BDF through
+  CasADi on the same smooth model, checked against the SciPy reference, same tolerances and grid,
+  in its own process pinned like the workers; ``--cvodes-jit``: its functions compiled to C),
+  else quoted from the project's issue 13 (BDF with a compiled C right-hand side, one pinned core
+  of this 2-core machine; ``--cvodes quote`` forces the quoted figures);
 - compile time of ``auto``'s solve, cold and warm: two more fresh processes sharing an empty
   cache folder with both of ``jaxclear run``'s caches on (JAX's persistent compilation cache and
   jaxclear's store of whole programs, ``jaxclear.enable_compilation_cache``), each timing an eager
@@ -28,6 +32,8 @@ Figures only, no assertions; timings depend on the load (printed) and on ``--pin
 """
 
 import argparse
+import importlib.util
+import json
 import os
 import subprocess
 import sys
@@ -39,7 +45,25 @@ import bench_clearance as bc  # noqa: E402  (the workers live there)
 
 CVODES_S = {"a": 0.075, "b": 0.111, "c": 0.102}
 """CVODES BDF + compiled C right-hand side, 2 revolutions, rtol 1e-6, atol 1e-9, one pinned core of
-the project's 2-core machine (issue 13's table; not measured here)."""
+the project's 2-core machine (issue 13's table): what the run is read against without CasADi."""
+
+
+def _cvodes(case, repeats, pin_cpu, jit, timeout=600.0):
+    """CVODES through ``cvodes_reference.py`` in its own process: its result dict, or None."""
+    cmd = [sys.executable, os.path.join(HERE, "cvodes_reference.py"), "--json", "--cases", case]
+    cmd += ["--repeats", str(repeats)] + (["--jit"] if jit else [])
+    if pin_cpu is not None:
+        cmd = ["taskset", "-c", str(pin_cpu), *cmd]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=bc.REPO)
+    except subprocess.TimeoutExpired:
+        return None
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+    if proc.returncode != 0 or not lines:
+        err = (proc.stderr.strip().splitlines() or ["?"])[-1]
+        print(f"case {case} CVODES failed: {err[:160]}", flush=True)
+        return None
+    return json.loads(lines[-1])
 
 
 def _job(case, method, repeats):
@@ -73,7 +97,19 @@ def main():
     p.add_argument("--pin-cpu", type=int, default=None, help="pin each worker to this CPU")
     p.add_argument("--xla-default", action="store_true", help="keep XLA's CPU fusion emitters")
     p.add_argument("--no-compile", action="store_true", help="skip the cold/warm compile runs")
+    p.add_argument(
+        "--cvodes",
+        choices=("auto", "measure", "quote"),
+        default="auto",
+        help="CVODES reference: measured here through CasADi (auto: if installed) or quoted",
+    )
+    p.add_argument("--cvodes-jit", action="store_true", help="CVODES with C-compiled functions")
     a = p.parse_args()
+    measure = a.cvodes == "measure" or (
+        a.cvodes == "auto" and importlib.util.find_spec("casadi") is not None
+    )
+    if a.cvodes == "measure" and importlib.util.find_spec("casadi") is None:
+        p.error("--cvodes measure needs CasADi: pip install casadi")
 
     import jax
 
@@ -95,7 +131,14 @@ def main():
     )
     print(
         "2 revolutions at 5000 rpm, rtol 1e-6, atol 1e-9, extremes tracked, 721 points; run = "
-        f"median of {a.repeats}; CVODES = issue 13's figures (not measured here)\n"
+        f"median of {a.repeats}; CVODES = "
+        + (
+            "measured in this run (cvodes_reference.py, CasADi"
+            + (", C-compiled functions" if a.cvodes_jit else "")
+            + ")\n"
+            if measure
+            else "issue 13's figures (not measured here)\n"
+        )
     )
     methods = [m.strip() for m in a.methods.split(",") if m.strip()]
     rows = []
@@ -118,6 +161,15 @@ def main():
                 f"{bare['steps']} steps  (load {bare['load']:.2f})",
                 flush=True,
             )
+        cvodes = None
+        if measure:
+            cvodes = _cvodes(case, a.repeats, a.pin_cpu, a.cvodes_jit)
+            if cvodes is not None:
+                print(
+                    f"case {case} CVODES        run {cvodes['run_s']:.3f} s, "
+                    f"{cvodes['steps']} steps  (load {bc.load():.2f})",
+                    flush=True,
+                )
         cold = warm = None
         if not a.no_compile:
             with tempfile.TemporaryDirectory(prefix="jaxclear-cache-") as cache:
@@ -128,7 +180,7 @@ def main():
                     )
                     for _ in range(2)
                 )
-        rows.append((case, auto, runs, bare, cold, warm))
+        rows.append((case, auto, runs, bare, cold, warm, cvodes))
 
     ok = lambda r: r is not None and "skipped" not in r and r["succeeded"]  # noqa: E731
     print(
@@ -136,14 +188,14 @@ def main():
         f"  {'CVODES s':>8}{'auto/CV':>8}{'fast/CV':>8}  {'bare s':>7}{'bare/CV':>8}"
         f"  {'compile cold':>12}{'warm':>6}"
     )
-    for case, auto, runs, bare, cold, warm in rows:
+    for case, auto, runs, bare, cold, warm, cvodes in rows:
         done = {m: r for m, r in runs.items() if ok(r)}
         if auto not in done or not done:
             print(f"{case:<5}{auto:<14} failed or skipped")
             continue
         r = done[auto]
         best = min(done, key=lambda m: done[m]["run_s"])
-        cv = CVODES_S[case]
+        cv = cvodes["run_s"] if cvodes is not None else CVODES_S[case]
         bare_text = (
             f"{bare['run_s']:7.3f}{bare['run_s'] / cv:8.2f}" if ok(bare) else f"{'-':>7}{'-':>8}"
         )
@@ -154,9 +206,12 @@ def main():
         )
         print(
             f"{case:<5}{auto:<14}{r['run_s']:7.3f}{r['steps']:7d}{1e6 * r['run_s'] / r['steps']:8.1f}  "
-            f"{best:<14}{done[best]['run_s']:7.3f}  {cv:8.3f}{r['run_s'] / cv:8.2f}"
+            f"{best:<14}{done[best]['run_s']:7.3f}  {cv:8.3f}{' ' if cvodes else '*'}"
+            f"{r['run_s'] / cv:7.2f}"
             f"{done[best]['run_s'] / cv:8.2f}  {bare_text}  {compile_text}"
         )
+    if any(row[-1] is None for row in rows):
+        print("* CVODES quoted from issue 13 (not measured in this run)")
     print(f"\nfinal load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
