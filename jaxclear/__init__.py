@@ -10,35 +10,17 @@ jax.config.update("jax_enable_x64", True)
 
 from . import analysis as analysis  # noqa: E402
 from . import mechanisms as mechanisms  # noqa: E402
-from ._errors import AssemblyError as AssemblyError  # noqa: E402
-from ._errors import DataError as DataError  # noqa: E402
-from ._errors import ModelError as ModelError  # noqa: E402
-from ._errors import SimulationError as SimulationError  # noqa: E402
-from ._executable_cache import compilation_cache_folder as compilation_cache_folder  # noqa: E402
-from ._executable_cache import (  # noqa: E402
-    compilation_cache_statistics as compilation_cache_statistics,
-)
-from ._executable_cache import disable_compilation_cache as disable_compilation_cache  # noqa: E402
-from ._executable_cache import enable_compilation_cache as enable_compilation_cache  # noqa: E402
-from ._measurements import Measurements as Measurements  # noqa: E402
-from ._signals import signal_names as signal_names  # noqa: E402
-from ._signals import signals as signals  # noqa: E402
-from ._simulate import assemble as assemble  # noqa: E402
-from ._simulate import simulate as simulate  # noqa: E402
-from ._simulate import simulate_batch as simulate_batch  # noqa: E402
-from ._solver import PRESETS as PRESETS  # noqa: E402
-from ._solver import SolverConfig as SolverConfig  # noqa: E402
-from ._solver import gradient_solver as gradient_solver  # noqa: E402
-from ._solver import recommended_solver as recommended_solver  # noqa: E402
-from ._startup import ideal_mechanism as ideal_mechanism  # noqa: E402
-from ._startup import wall_start as wall_start  # noqa: E402
-from ._trajectory import Trajectory as Trajectory  # noqa: E402
-from .analysis import FitParameter as FitParameter  # noqa: E402
-from .analysis import identify as identify  # noqa: E402
-from .analysis import montecarlo as montecarlo  # noqa: E402
-from .analysis import optimize as optimize  # noqa: E402
-from .analysis import run_ensemble as run_ensemble  # noqa: E402
-from .analysis import sweep as sweep  # noqa: E402
+from ._core._errors import AssemblyError as AssemblyError  # noqa: E402
+from ._core._errors import DataError as DataError  # noqa: E402
+from ._core._errors import ModelError as ModelError  # noqa: E402
+from ._core._errors import SimulationError as SimulationError  # noqa: E402
+from ._core._executable_cache import compilation_cache_folder as compilation_cache_folder  # noqa: E402
+from ._core._executable_cache import compilation_cache_statistics as compilation_cache_statistics  # noqa: E402
+from ._core._executable_cache import disable_compilation_cache as disable_compilation_cache  # noqa: E402
+from ._core._executable_cache import enable_compilation_cache as enable_compilation_cache  # noqa: E402
+from .analysis._signals import signal_names as signal_names  # noqa: E402
+from .analysis._signals import signals as signals  # noqa: E402
+from .io._measurements import Measurements as Measurements  # noqa: E402
 from .model import AbstractDriver as AbstractDriver  # noqa: E402
 from .model import AbstractForceElement as AbstractForceElement  # noqa: E402
 from .model import AbstractJoint as AbstractJoint  # noqa: E402
@@ -57,5 +39,21 @@ from .model import get_parameter as get_parameter  # noqa: E402
 from .model import parameter_info as parameter_info  # noqa: E402
 from .model import parameter_names as parameter_names  # noqa: E402
 from .model import with_parameters as with_parameters  # noqa: E402
+from .solve._simulate import assemble as assemble  # noqa: E402
+from .solve._simulate import simulate as simulate  # noqa: E402
+from .solve._simulate import simulate_batch as simulate_batch  # noqa: E402
+from .solve._solver import PRESETS as PRESETS  # noqa: E402
+from .solve._solver import SolverConfig as SolverConfig  # noqa: E402
+from .solve._solver import gradient_solver as gradient_solver  # noqa: E402
+from .solve._solver import recommended_solver as recommended_solver  # noqa: E402
+from .solve._startup import ideal_mechanism as ideal_mechanism  # noqa: E402
+from .solve._startup import wall_start as wall_start  # noqa: E402
+from .solve._trajectory import Trajectory as Trajectory  # noqa: E402
+from .studies import FitParameter as FitParameter  # noqa: E402
+from .studies import identify as identify  # noqa: E402
+from .studies import montecarlo as montecarlo  # noqa: E402
+from .studies import optimize as optimize  # noqa: E402
+from .studies import run_ensemble as run_ensemble  # noqa: E402
+from .studies import sweep as sweep  # noqa: E402
 
 __version__ = "0.1.0"

@@ -3,7 +3,7 @@
 import jax.numpy as jnp
 from jaxtyping import ArrayLike
 
-from ._errors import ModelError
+from ._core._errors import ModelError
 from .model._body import Body
 from .model._clearance import ClearanceJoint
 from .model._joints import ConstantSpeedDriver, RevoluteJoint, TranslationalJoint
@@ -232,3 +232,9 @@ def make_clearance_joints(revolute: dict, spec, shared: dict, owner: str) -> tup
         for name in revolute
         if name in spec
     )
+
+
+def is_slider_crank(mechanism) -> bool:
+    """Whether ``mechanism`` is the benchmark slider–crank (bodies ``crank``, ``rod``, ``slider``),
+    whose results keep their established columns ``slider_x``, ``slider_v``, ``slider_a``."""
+    return tuple(mechanism.body_names) == ("crank", "rod", "slider")

@@ -2,7 +2,7 @@
 
 Every function returns a ``matplotlib.figure.Figure`` built without ``pyplot`` (no global state,
 no GUI; saving uses the Agg renderer), so it works headless, in scripts and in notebooks. The
-quantities are the columns of ``results.csv`` (see ``jaxclear._outputs.result_columns``), e.g.
+quantities are the columns of ``results.csv`` (see ``jaxclear.io.result_columns``), e.g.
 ``"slider_x"``, ``"slider_a"``, ``"crank_torque"``, ``"A_Fx"``, ``"constraint_violation"``.
 
 Each plotting function takes an optional ``reference`` trajectory (for instance the ideal-joint run)
@@ -23,14 +23,10 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MultipleLocator
 
-from ._outputs import (
-    BODY_OUTPUTS,
-    Column,
-    clearance_joint_names,
-    column_map,
-    is_slider_crank,
-)
+from .io import Column, clearance_joint_names, column_map
+from .mechanisms import is_slider_crank
 from .model import RevoluteJoint
+from .solve._trajectory import BODY_OUTPUTS
 
 QUANTITY_LABELS = {
     "slider_x": "Slider position",
@@ -482,7 +478,7 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
     joint_forces.png (ideal revolute joints); always constraint_violation.png (against time, log
     axis); with clearance joints also normal_force.png (against the driven angle) and
     orbit_<joint>.png per joint. Plots whose quantity the mechanism lacks (no driver) are skipped.
-    The y-ranges follow the instants in ``traj``: pass the kept window (``_outputs.window``) to
+    The y-ranges follow the instants in ``traj``: pass the kept window (``jaxclear.solve.window``) to
     leave a start-up transient out.
 
     Args:
@@ -581,7 +577,7 @@ _SIGNAL_UNITS = {"slider_x": "m", "slider_v": "m/s", "slider_a": "m/s²"}
 
 
 def _signal_unit(name: str) -> str:
-    from ._outputs import CLEARANCE_OUTPUTS
+    from .solve._trajectory import CLEARANCE_OUTPUTS
 
     if name in _SIGNAL_UNITS:
         return _SIGNAL_UNITS[name]
@@ -962,7 +958,7 @@ def plot_sweep_modes(result) -> Figure:
 
 
 def plot_bifurcation(diagram, signals: Sequence[str] | None = None) -> Figure:
-    """Bifurcation diagram (``analysis.bifurcation_points``): each value's Poincaré section points
+    """Bifurcation diagram (``studies.bifurcation_points``): each value's Poincaré section points
     (once per crank revolution) against the swept parameter, one panel per signal. A periodic
     response is one point per value, period k is k points, scatter is quasi-periodic or chaotic.
 
@@ -1011,7 +1007,7 @@ def plot_bifurcation(diagram, signals: Sequence[str] | None = None) -> Figure:
 
 
 def plot_lyapunov_sweep(sweep) -> Figure:
-    """The largest Lyapunov exponent against the swept parameter (``analysis.lyapunov_sweep``),
+    """The largest Lyapunov exponent against the swept parameter (``studies.lyapunov_sweep``),
     with each estimate's convergence spread as an error bar; λ < 0 is a stable (periodic)
     response, λ > 0 a chaotic one (docs/chaos.md on what λ means with impacts).
 

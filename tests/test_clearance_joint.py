@@ -15,12 +15,12 @@ import pytest
 
 import jaxclear
 from jaxclear import ClearanceJoint
-from jaxclear._simulate import assemble
 from jaxclear.analysis import drive_work, kinetic_energy
 from jaxclear.contact import ContactGeometry, Hybrid, LankaraniNikravesh, Smoothing
 from jaxclear.dynamics import _clearance as clearance
 from jaxclear.friction import LuGre, NoFriction
 from jaxclear.mechanisms import slider_crank
+from jaxclear.solve._simulate import assemble
 
 RPM = 5000.0
 OMEGA = RPM * 2 * np.pi / 60

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear._extremes import Observation, Tracker
 from jaxclear.analysis import CONTINUOUS, IMPACT, contact_events, event_mode_shares
 from jaxclear.analysis._modes import contact_modes
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import ModifiedCoulomb
 from jaxclear.mechanisms import slider_crank
+from jaxclear.solve._extremes import Observation, Tracker
 
 
 def _observation(delta):

@@ -9,7 +9,7 @@ import pytest
 import scipy.special
 import scipy.stats
 
-from jaxclear.analysis._distributions import (
+from jaxclear.studies._distributions import (
     AbstractDistribution,
     Fixed,
     IsoFit,
@@ -19,7 +19,7 @@ from jaxclear.analysis._distributions import (
     _standard_normal_quantile,
     distribution_from_spec,
 )
-from jaxclear.analysis._iso286 import fit_clearance, fit_zones
+from jaxclear.studies._iso286 import fit_clearance, fit_zones
 
 N_SAMPLES = 200_000
 STANDARD_ERRORS = 5.0

@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear.analysis import EnsembleError, draw, fit_clearance
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import ModifiedCoulomb
 from jaxclear.mechanisms import slider_crank
+from jaxclear.studies import EnsembleError, draw, fit_clearance
 
 CHUNK = 4
 POINTS = 61

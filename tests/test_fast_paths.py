@@ -10,7 +10,6 @@ import optimistix as optx
 import pytest
 
 import jaxclear
-from jaxclear._root_finder import DiagonalNewton
 from jaxclear.contact import Hybrid, LankaraniNikravesh
 from jaxclear.dynamics import _clearance as clearance
 from jaxclear.dynamics._batched import groups
@@ -23,6 +22,7 @@ from jaxclear.dynamics._equations import (
 )
 from jaxclear.friction import FRICTION_LAWS, LuGre, ModifiedCoulomb, friction_law_from_name
 from jaxclear.mechanisms import slider_crank
+from jaxclear.solve._root_finder import DiagonalNewton
 
 RNG = np.random.default_rng(7)
 _vector_field = eqx.filter_jit(vector_field)
@@ -238,7 +238,7 @@ def test_auto_solver_choice():
     )
     assert jaxclear.recommended_solver(coulomb).method == "tsit5"
     with pytest.raises(ValueError, match="solver 'auto' needs the mechanism"):
-        jaxclear._solver.solver_config("auto")
+        jaxclear.solve._solver.solver_config("auto")
 
 
 @pytest.fixture(scope="module")

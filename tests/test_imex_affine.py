@@ -1,4 +1,4 @@
-"""``AffineKenCarp`` (jaxclear/_imex.py): closed-form IMEX stage solves give diffrax's KenCarp steps.
+"""``AffineKenCarp`` (jaxclear/solve/_imex.py): closed-form IMEX stage solves give diffrax's KenCarp steps.
 
 A step of diffrax's KenCarp3/4/5 with ``DiagonalNewton(affine=True)`` on the split (non-stiff,
 stiff) and a step of ``AffineKenCarp`` on the full vector field must agree to rounding, at the end
@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear._imex import AffineKenCarp
-from jaxclear._root_finder import DiagonalNewton
-from jaxclear._simulate import _FULL, _STAGE
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.dynamics._equations import nonstiff_vector_field, stiff_vector_field
 from jaxclear.friction import LuGre
 from jaxclear.mechanisms import slider_crank
+from jaxclear.solve._imex import AffineKenCarp
+from jaxclear.solve._root_finder import DiagonalNewton
+from jaxclear.solve._simulate import _FULL, _STAGE
 
 # diffrax's KenCarp on the split (non-stiff, stiff): the reference for AffineKenCarp
 _STIFF = eqx.filter_jit(stiff_vector_field)

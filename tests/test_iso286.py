@@ -15,7 +15,7 @@ Expected values are copied from published tables, not computed:
 
 import pytest
 
-from jaxclear.analysis._iso286 import (
+from jaxclear.studies._iso286 import (
     _DELTA_UM,
     _IT_UM,
     fit_clearance,

@@ -1,4 +1,4 @@
-"""``LawsonTsit5`` (jaxclear/_lawson.py): Tsit5 on plain rows, exact integrating factor on decay rows.
+"""``LawsonTsit5`` (jaxclear/solve/_lawson.py): Tsit5 on plain rows, exact integrating factor on decay rows.
 
 Toy problems with known solutions: the solver is checked apart from the mechanism model (on the
 mechanism, with the offset form of the impact memory: tests/test_fast_paths.py).
@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxclear._lawson import LawsonTsit5
+from jaxclear.solve._lawson import LawsonTsit5
 
 RATE = 1e6  # 1/s: the impact-memory relaxation rate k_m of the benchmark (docs/model.md §5)
 

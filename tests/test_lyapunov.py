@@ -1,5 +1,5 @@
 """Largest Lyapunov exponent: Lorenz, a damped oscillator, the ideal slider-crank
-(jaxclear.analysis._lyapunov)."""
+(jaxclear.studies._lyapunov)."""
 
 import diffrax
 import equinox as eqx
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear.analysis import (
+from jaxclear.dynamics._constraints import constraint_velocity, constraints
+from jaxclear.studies import (
     ConstraintProjection,
     ODEFlow,
     flow_lyapunov,
@@ -18,7 +19,6 @@ from jaxclear.analysis import (
     mechanism_weights,
     two_trajectory_lyapunov,
 )
-from jaxclear.dynamics._constraints import constraint_velocity, constraints
 
 LORENZ_EXPONENT = 0.9056
 """Largest exponent of the Lorenz system at σ = 10, ρ = 28, β = 8/3 (Sprott, Chaos and

@@ -15,8 +15,8 @@ from helpers import NUM_POINTS
 
 import jaxclear
 from jaxclear import DataError, Measurements
-from jaxclear._measurements import NOISE_FLOOR, estimate_noise
-from jaxclear._outputs import result_columns, write_csv
+from jaxclear.io import result_columns, write_csv
+from jaxclear.io._measurements import NOISE_FLOOR, estimate_noise
 from jaxclear.mechanisms import slider_crank
 
 KNOWN = ("slider_x", "slider_v", "slider_a", "B_normal_force")
@@ -25,7 +25,7 @@ NOISE_RTOL = 0.10
 measured over 2000 draws, ``estimate_noise``), so 10 % is over two standard deviations."""
 
 CSV_RTOL = 1e-11
-"""results.csv keeps 12 significant digits (``_outputs.CSV_FORMAT``): relative round-off 5e-12."""
+"""results.csv keeps 12 significant digits (``jaxclear.io.CSV_FORMAT``): relative round-off 5e-12."""
 
 
 def _write(tmp_path, text: str | bytes, name="data.csv"):

@@ -141,7 +141,7 @@ def test_unknown_quantity(traj):
 
 
 def test_window_keeps_the_later_instants(clearance_traj):
-    from jaxclear._outputs import window
+    from jaxclear.solve import window
 
     t = np.asarray(clearance_traj.t)
     start = t[NUM_POINTS // 2]

@@ -1,17 +1,12 @@
-"""Poincaré sections, bifurcation diagrams, phase portraits (jaxclear.analysis._poincare)."""
+"""Poincaré sections, bifurcation diagrams, phase portraits (jaxclear.studies._poincare)."""
 
 import jax
 import numpy as np
 import pytest
 
 import jaxclear
-from jaxclear.analysis import (
-    bifurcation_points,
-    distinct_points,
-    phase_portrait,
-    poincare_section,
-    section_times,
-)
+from jaxclear.analysis import distinct_points, phase_portrait
+from jaxclear.studies import bifurcation_points, poincare_section, section_times
 
 RPM = 5000.0
 PERIOD = 60.0 / RPM

@@ -17,9 +17,9 @@ import pytest
 from helpers import NUM_POINTS  # as tests/test_clearance_joint.py: same compiled solve
 
 import jaxclear
-from jaxclear._outputs import result_columns
 from jaxclear.contact import ContactGeometry, LankaraniNikravesh
 from jaxclear.friction import LuGre, NoFriction
+from jaxclear.io import result_columns
 from jaxclear.mechanisms import four_bar, slider_crank
 
 RPM = 5000.0

@@ -1,38 +1,10 @@
-"""Post-processing: energy, contact modes, run statistics; ensembles (Monte Carlo over tolerances,
-sweeps); identification and design optimisation."""
+"""Analysis: functions of one result. Named signals, run statistics, energy, contact modes,
+spectra, phase portraits. Workflows that run many solves are in ``jaxclear.studies``."""
 
-from ._distributions import AbstractDistribution as AbstractDistribution
-from ._distributions import Fixed as Fixed
-from ._distributions import IsoFit as IsoFit
-from ._distributions import LogNormal as LogNormal
-from ._distributions import Normal as Normal
-from ._distributions import Uniform as Uniform
-from ._distributions import distribution_from_spec as distribution_from_spec
 from ._energy import drive_power as drive_power
 from ._energy import drive_work as drive_work
 from ._energy import kinetic_energy as kinetic_energy
 from ._energy import potential_energy as potential_energy
-from ._ensemble import EnsembleError as EnsembleError
-from ._ensemble import EnsembleResult as EnsembleResult
-from ._ensemble import run_ensemble as run_ensemble
-from ._identify import Estimate as Estimate
-from ._identify import IdentificationResult as IdentificationResult
-from ._identify import identify as identify
-from ._iso286 import fit_clearance as fit_clearance
-from ._iso286 import fit_zones as fit_zones
-from ._iso286 import standard_tolerance as standard_tolerance
-from ._iso286 import tolerance_zone as tolerance_zone
-from ._lyapunov import ConstraintProjection as ConstraintProjection
-from ._lyapunov import LyapunovResult as LyapunovResult
-from ._lyapunov import LyapunovSweep as LyapunovSweep
-from ._lyapunov import MechanismFlow as MechanismFlow
-from ._lyapunov import ODEFlow as ODEFlow
-from ._lyapunov import flow_lyapunov as flow_lyapunov
-from ._lyapunov import largest_lyapunov as largest_lyapunov
-from ._lyapunov import lyapunov_solver as lyapunov_solver
-from ._lyapunov import lyapunov_sweep as lyapunov_sweep
-from ._lyapunov import mechanism_weights as mechanism_weights
-from ._lyapunov import two_trajectory_lyapunov as two_trajectory_lyapunov
 from ._modes import CONTINUOUS as CONTINUOUS
 from ._modes import FREE as FREE
 from ._modes import IMPACT as IMPACT
@@ -44,21 +16,10 @@ from ._modes import contact_events as contact_events
 from ._modes import contact_modes as contact_modes
 from ._modes import event_mode_shares as event_mode_shares
 from ._modes import trajectory_modes as trajectory_modes
-from ._montecarlo import draw as draw
-from ._montecarlo import montecarlo as montecarlo
-from ._montecarlo import sweep as sweep
-from ._montecarlo import sweep_values as sweep_values
-from ._optimize import OptimizationResult as OptimizationResult
-from ._optimize import optimize as optimize
-from ._optimize import start_offsets as start_offsets
-from ._parameter_space import FitParameter as FitParameter
-from ._poincare import BifurcationDiagram as BifurcationDiagram
-from ._poincare import bifurcation_points as bifurcation_points
-from ._poincare import default_section_signals as default_section_signals
-from ._poincare import distinct_points as distinct_points
-from ._poincare import phase_portrait as phase_portrait
-from ._poincare import poincare_section as poincare_section
-from ._poincare import section_times as section_times
+from ._orbits import distinct_points as distinct_points
+from ._orbits import phase_portrait as phase_portrait
+from ._signals import signal_names as signal_names
+from ._signals import signals as signals
 from ._spectrum import WINDOWS as WINDOWS
 from ._spectrum import amplitude_spectrum as amplitude_spectrum
 from ._spectrum import signal_spectrum as signal_spectrum

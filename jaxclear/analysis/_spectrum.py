@@ -10,8 +10,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import is_concrete
-from .._signals import signal_names, signals
+from .._core._checks import is_concrete
+from ._signals import signal_names, signals
 
 UNIFORM_RTOL = 1e-6
 """Largest deviation of a time step from the mean step, relative to it, for a grid to count as

@@ -18,13 +18,8 @@ from typing import Any
 
 import jaxclear
 
-from .. import _outputs
-from ..analysis._ensemble import (
-    DEFAULT_CHUNK,
-    DEFAULT_CONTINUOUS_FRACTION,
-    MANIFEST,
-    EnsembleError,
-)
+from ..io import package_versions, write_json
+from ..studies._ensemble import DEFAULT_CHUNK, DEFAULT_CONTINUOUS_FRACTION, MANIFEST, EnsembleError
 from ._common import (
     NOT_APPLIED,
     PROG,
@@ -355,8 +350,8 @@ def finish(
             files += [p.name for p in save_ensemble_plots(result, out_dir, kind=kind)]
         info.update(summary)
         info["files"] = files
-        info["versions"] = _outputs.package_versions()
-        _outputs.write_json(out_dir / json_name, info)
+        info["versions"] = package_versions()
+        write_json(out_dir / json_name, info)
     except OSError as e:
         raise RunError(
             f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out "

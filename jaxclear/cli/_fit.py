@@ -12,8 +12,8 @@ import numpy as np
 
 import jaxclear
 
-from .. import _outputs
-from ..analysis._identify import DEFAULT_HORIZONS, check_identification, identify
+from ..io import CSV_FORMAT, atomic_write, package_versions, write_json
+from ..studies._identify import DEFAULT_HORIZONS, check_identification, identify
 from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
 from ._config import resolve_settings
 from ._mechanism_config import build_mechanism
@@ -281,20 +281,20 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         "config": config,
         "clearance_per_joint": settings.joint_tables,
         **summary,
-        "versions": _outputs.package_versions(),
+        "versions": package_versions(),
         "jax_backend": jax.default_backend(),
         "files": [FIT_JSON, FIT_CSV, "fit.png", "loss.png"],
     }
     try:
-        _outputs.write_json(out_dir / FIT_JSON, info)
-        _outputs.atomic_write(out_dir / FIT_CSV, lambda tmp: _write_fit_csv(tmp, result))
+        write_json(out_dir / FIT_JSON, info)
+        atomic_write(out_dir / FIT_CSV, lambda tmp: _write_fit_csv(tmp, result))
         if config["output"]["plots"]:
             from ..plot import save_fit_plots
 
             save_fit_plots(result, out_dir)
         else:
             info["files"] = [FIT_JSON, FIT_CSV]
-            _outputs.write_json(out_dir / FIT_JSON, info)
+            write_json(out_dir / FIT_JSON, info)
     except OSError as e:
         raise RunError(
             f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
@@ -322,4 +322,4 @@ def _write_fit_csv(path: str, result) -> None:
         writer = csv.writer(f)
         writer.writerow(header)
         for row in table:
-            writer.writerow([_outputs.CSV_FORMAT % v for v in row])
+            writer.writerow([CSV_FORMAT % v for v in row])

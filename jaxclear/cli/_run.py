@@ -18,9 +18,21 @@ import numpy as np
 
 import jaxclear
 
-from .. import _outputs
-from .._startup import ideal_mechanism, wall_start
-from ..analysis._ensemble import EVENTS_PER_REVOLUTION
+from ..io import (
+    RUN_FORMAT,
+    RUN_JSON_NAME,
+    clearance_joint_names,
+    mode_shares,
+    package_versions,
+    run_statistics,
+    write_json,
+    write_modes_csv,
+    write_results,
+)
+from ..mechanisms import is_slider_crank
+from ..solve import finite_rows, window
+from ..solve._startup import ideal_mechanism, wall_start
+from ..studies._ensemble import EVENTS_PER_REVOLUTION
 from ._common import (
     PROG,
     RunError,
@@ -126,7 +138,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
 
 def solver_for(settings: Settings, mechanism=None):
     """The run's ``SolverConfig``; ``auto`` is decided from ``mechanism`` (``recommended_solver``)."""
-    from .._solver import solver_config
+    from ..solve._solver import solver_config
 
     section = settings.config["solver"]
     name = section["method"]
@@ -258,7 +270,7 @@ def _joints_text(settings: Settings, names: list[str]) -> str:
 def _figures(traj, statistics: dict) -> str:
     """The run's headline figures over the kept window, from the solver's steps (``statistics``)."""
     parts = []
-    if _outputs.is_slider_crank(traj.mechanism):
+    if is_slider_crank(traj.mechanism):
         parts.append(
             f"peak |slider acceleration| {statistics['peak_slider_acceleration']:.6g} m/s^2"
         )
@@ -266,7 +278,7 @@ def _figures(traj, statistics: dict) -> str:
     if driver is not None:
         low, high, rms = (statistics[f"{driver.body}_torque_{k}"] for k in ("min", "max", "rms"))
         parts.append(f"{driver.body} torque {low:.6g} .. {high:.6g} N m (rms {rms:.6g})")
-    for name in _outputs.clearance_joint_names(traj):
+    for name in clearance_joint_names(traj):
         parts.append(
             f"{name} peak normal force {statistics[f'{name}_peak_normal_force']:.6g} N, "
             f"peak penetration {statistics[f'{name}_peak_penetration'] * 1e6:.4g} um"
@@ -338,7 +350,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise RunError(one_line(e)) from None
 
     info: dict[str, Any] = dict(
-        format=_outputs.RUN_FORMAT,
+        format=RUN_FORMAT,
         status="complete",
         error=None,
         created=datetime.now(UTC).isoformat(timespec="seconds"),
@@ -371,20 +383,20 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             "simulate call afterwards, which reuses the compiled code. compiled_programs: "
             "programs loaded from the compilation cache, compiled (and stored) in this run."
         ),
-        versions=_outputs.package_versions(),
+        versions=package_versions(),
         jax_backend=jax.default_backend(),
     )
     fraction = config["clearance"]["continuous_fraction"]
     if not bool(traj.succeeded):
         return _failed(traj, solver, info, out_dir, fraction, say)
 
-    kept = _outputs.window(traj, t_keep)
-    statistics = _outputs.run_statistics(traj)
+    kept = window(traj, t_keep)
+    statistics = run_statistics(traj)
     reference = None
     if names and config["output"]["plots"]:
         say("ideal-joint reference run for the plots ...", flush=True)
         reference = _block(jaxclear.simulate(ideal, t1, num_points=num_points, solver="fast"))
-        reference = _outputs.window(reference, t_keep)
+        reference = window(reference, t_keep)
     files = []
     try:
         if config["output"]["plots"]:
@@ -398,14 +410,14 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         )
         if modes.get("events") is not None:
             events = modes.pop("events")
-            files.append(_outputs.write_modes_csv(out_dir / MODES_CSV, events).name)
+            files.append(write_modes_csv(out_dir / MODES_CSV, events).name)
             if config["output"]["plots"]:
                 from ..plot import save_mode_timeline
 
                 files.append(save_mode_timeline(traj, out_dir, events=events, start=t_keep).name)
         modes.pop("events", None)
         info.update(statistics=statistics, **modes, files=files)
-        paths = _outputs.write_results(out_dir, traj, info, fraction)
+        paths = write_results(out_dir, traj, info, fraction)
     except OSError as e:
         raise RunError(
             f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
@@ -432,7 +444,7 @@ def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) ->
         shares = event_mode_shares(traj, continuous_fraction=fraction, start=t_keep)
     except ValueError as e:  # the buffer overflowed: shares from the saved instants instead
         return {
-            "contact_mode_shares": _outputs.mode_shares(kept, fraction, reference_period=period),
+            "contact_mode_shares": mode_shares(kept, fraction, reference_period=period),
             "contact_modes": {},
             "contact_mode_source": f"saved instants ({one_line(e)})",
             "contact_mode_rule": rule,
@@ -450,24 +462,22 @@ def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) ->
 def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> int:
     """A failed solve: the finite instants reached are written, no plots, run.json says why; exit 1."""
     # the message simulate(throw=True) would raise, for a trajectory that is kept
-    from .._simulate import failure_error
+    from ..solve._simulate import failure_error
 
     failure = failure_error(traj, solver)
-    reached = _outputs.finite_rows(traj.truncated())
+    reached = finite_rows(traj.truncated())
     info.update(
         status="failed", error=one_line(failure), statistics={}, contact_mode_shares={}, files=[]
     )
     try:
         if reached.t.shape[0] >= 1:
-            _outputs.write_results(out_dir, reached, info, fraction)
+            write_results(out_dir, reached, info, fraction)
             where = (
                 f"Partial results up to t = {float(reached.t[-1]):.6g} s (no plots) are in {out_dir}/ "
                 "(run.json status 'failed')."
             )
         else:
-            _outputs.write_json(
-                out_dir / _outputs.RUN_JSON_NAME, {**info, "files": [_outputs.RUN_JSON_NAME]}
-            )
+            write_json(out_dir / RUN_JSON_NAME, {**info, "files": [RUN_JSON_NAME]})
             where = f"No instant was reached; {out_dir}/run.json has status 'failed'."
     except OSError as e:
         raise RunError(

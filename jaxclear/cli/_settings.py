@@ -19,9 +19,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from .. import mechanisms as _mechanisms
-from .._solver import METHODS, PRESETS
 from ..contact import CONTACT_LAWS
 from ..friction import FRICTION_LAWS
+from ..solve._solver import METHODS, PRESETS
 from ._common import UsageError
 
 MECHANISMS = ("slider_crank", "four_bar", "custom")
@@ -119,7 +119,7 @@ DEFAULT_SOLVER = "auto"
 KenCarp5 before; implicit in the internal states) with LuGre friction, ``fast`` (Tsit5) otherwise. Measured on the default three-joint run
 (hybrid + LuGre, 2 revolutions, 2-core machine, fast_compile on): KenCarp5 compile 5.8 s + run
 0.77 s (9 424 steps), Tsit5 4.9 s + 1.52 s (48 011 steps), Kvaerno5 (``robust``) 14.2 s + 3.3 s;
-KenCarp5 with closed-form stage solves (``jaxclear._imex``, now used) 4.91 s + 0.477 s."""
+KenCarp5 with closed-form stage solves (``jaxclear.solve._imex``, now used) 4.91 s + 0.477 s."""
 
 SC, FB = ("slider_crank",), ("four_bar",)
 BENCHMARKS = ("slider_crank", "four_bar")

@@ -6,8 +6,8 @@ import numpy as np
 
 import jaxclear
 
-from ..analysis._ensemble import EnsembleError
-from ..analysis._montecarlo import sweep_values
+from ..studies._ensemble import EnsembleError
+from ..studies._montecarlo import sweep_values
 from ._common import UsageError, one_line
 from ._ensemble_common import add_ensemble_arguments, base_info, finish, prepare, run_engine
 from ._settings import add_setting_arguments, config_reference

@@ -14,13 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import _outputs
-from ..analysis import (
-    bifurcation_points,
-    distinct_points,
-    lyapunov_solver,
-    lyapunov_sweep,
-)
+from ..analysis import distinct_points
+from ..io import atomic_write, write_json
+from ..studies import bifurcation_points, lyapunov_solver, lyapunov_sweep
 from ._common import RunError, UsageError, one_line
 
 BIFURCATION_CSV = "bifurcation.csv"
@@ -80,7 +76,7 @@ def _write_rows(path: Path, header: list[str], rows: list[list[Any]]) -> Path:
             w.writerow(header)
             w.writerows([[repr(float(v)) if isinstance(v, float) else v for v in r] for r in rows])
 
-    return _outputs.atomic_write(path, write)
+    return atomic_write(path, write)
 
 
 def _failed_stage(stage: str, out_dir: Path, error: Exception) -> RunError:
@@ -158,7 +154,7 @@ def run_stages(
             "over the diagram are one point",
         }
         info["files"] = list(info.get("files", [])) + files
-        _outputs.write_json(out_dir / json_name, info)
+        write_json(out_dir / json_name, info)
         ok = int(diagram.succeeded.sum())
         first = names[0]
         counts = distinct[first]["counts"]
@@ -209,7 +205,7 @@ def run_stages(
             "succeeded": sweep.succeeded.tolist(),
         }
         info["files"] = list(info.get("files", [])) + files
-        _outputs.write_json(out_dir / json_name, info)
+        write_json(out_dir / json_name, info)
         finite = sweep.exponents[np.isfinite(sweep.exponents)]
         if finite.size:
             say(

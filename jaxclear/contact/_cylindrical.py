@@ -26,8 +26,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_positive, check_restitution
-from .._smooth import safe_pow
+from .._core._checks import check_positive, check_restitution
+from .._core._smooth import safe_pow
 from ._base import ContactGeometry, _array
 from ._damped import AbstractLNDampedElasticLaw
 from ._hertz import _optional_array

@@ -20,8 +20,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_restitution
-from .._smooth import safe_pow, smooth_ramp, smooth_step
+from .._core._checks import check_restitution
+from .._core._smooth import safe_pow, smooth_ramp, smooth_step
 from ._base import (
     AbstractContactLaw,
     ContactGeometry,

@@ -20,8 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import check_count, check_positive, check_restitution
-from .._smooth import safe_sqrt
+from .._core._checks import check_count, check_positive, check_restitution
+from .._core._smooth import safe_sqrt
 from ._base import ContactGeometry, _array
 from ._damped import AbstractLNDampedElasticLaw
 from ._hertz import _optional_array

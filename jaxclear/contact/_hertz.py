@@ -1,14 +1,14 @@
 """Hertz point contact law (docs/model.md §3) and the stiffness helpers shared by the contact laws.
 
-Parameter checks come from ``jaxclear._checks`` (skipped for traced values inside ``jit``/``vmap``).
+Parameter checks come from ``jaxclear._core._checks`` (skipped for traced values inside ``jit``/``vmap``).
 """
 
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_positive
-from .._smooth import safe_pow, smooth_ramp
+from .._core._checks import check_positive
+from .._core._smooth import safe_pow, smooth_ramp
 from ._base import (
     AbstractContactLaw,
     ContactGeometry,

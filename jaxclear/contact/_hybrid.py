@@ -27,8 +27,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._checks import check_count, check_positive, check_restitution
-from .._smooth import smooth_max, smooth_ramp
+from .._core._checks import check_count, check_positive, check_restitution
+from .._core._smooth import smooth_max, smooth_ramp
 from ._base import (
     AbstractContactLaw,
     ContactGeometry,

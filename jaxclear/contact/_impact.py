@@ -8,8 +8,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_nonnegative, check_positive
-from .._smooth import safe_pow, smooth_ramp, smooth_step
+from .._core._checks import check_nonnegative, check_positive
+from .._core._smooth import safe_pow, smooth_ramp, smooth_step
 from ._base import (
     AbstractContactLaw,
     ContactGeometry,

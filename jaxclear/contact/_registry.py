@@ -1,6 +1,6 @@
 """Contact laws by kebab-case name, for configuration files and the command line."""
 
-from .._registry import Registry
+from .._core._registry import Registry
 from ._base import AbstractContactLaw
 from ._cylindrical import Liu2007, Pereira2011
 from ._damped import Flores, Gonthier, HuntCrossley, LankaraniNikravesh, ZhiyingQishao
@@ -26,7 +26,7 @@ CONTACT_LAWS: Registry[AbstractContactLaw] = Registry(
         "hybrid": Hybrid,
     },
 )
-"""Read-only mapping from registry name to contact law class (``jaxclear._registry.Registry``)."""
+"""Read-only mapping from registry name to contact law class (``jaxclear._core._registry.Registry``)."""
 
 
 def contact_law_from_name(name: str, **params) -> AbstractContactLaw:

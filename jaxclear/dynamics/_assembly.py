@@ -10,8 +10,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import AssemblyError
-from .._executable_cache import stored_jit
+from .._core._errors import AssemblyError
+from .._core._executable_cache import stored_jit
 from . import _clearance as clearance
 from ._constraints import constraints
 

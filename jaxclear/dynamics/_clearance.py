@@ -17,8 +17,8 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._geometry import dot2, perp, point_position, point_velocity
-from .._smooth import safe_norm
+from .._core._geometry import dot2, perp, point_position, point_velocity
+from .._core._smooth import safe_norm
 from ..contact._base import ContactKinematics
 from ..model._clearance import ClearanceJoint
 from ._impact_memory import (

@@ -251,7 +251,7 @@ def memory_decay_rates(t, y, mechanism) -> Float[Array, " N"]:
 
     The stiff part is affine and diagonal in the internal states (tests/test_fast_paths.py checks
     the contract), so one Jacobian–vector product along the memory rows gives the diagonal.
-    Used by ``jaxclear._lawson.LawsonTsit5``.
+    Used by ``jaxclear.solve._lawson.LawsonTsit5``.
     """
     mask = jnp.asarray(mechanism.memory_rows, y.dtype)
     _, rates = jax.jvp(lambda x: stiff_vector_field(t, x, mechanism), (y,), (mask,))

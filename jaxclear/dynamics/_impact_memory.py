@@ -18,7 +18,7 @@ Two state variables for the same model:
     u̇ = ṁ − dδ̇/dt = (w(δ) − 1) dδ̇/dt − w(δ) k_m u,      m = δ̇ + u.
 
   In free flight (w = 1) this is the pure decay u̇ = −k_m u with no forcing, so an exponential
-  integrator (``jaxclear._lawson``) takes it exactly, without the explicit stability limit
+  integrator (``jaxclear.solve._lawson``) takes it exactly, without the explicit stability limit
   h < ~3/k_m; in contact (w = 0) u̇ = −dδ̇/dt keeps m frozen. The two forms differ only where
   (tᵀė)²/e is floored (e < 1e-3 c, far from the wall, where w − 1 = 0 in the offset form).
   The offset form is not the default because in contact its rows couple to the contact force
@@ -32,7 +32,7 @@ This module is isolated so that the reconstruction can be swapped (e.g. for even
 
 import jax.numpy as jnp
 
-from .._smooth import smooth_max, smooth_step
+from .._core._smooth import smooth_max, smooth_step
 
 ECCENTRICITY_FLOOR = 1e-3  # fraction of c below which (tᵀė)²/e is evaluated at e = 1e-3 c (memory
 # is irrelevant far from the wall; this avoids 0/0 with a centred journal)
@@ -85,7 +85,7 @@ def memory_offset_rate(
 
 def memory_relaxation(state, penetration, penetration_rate, smoothing, offset: bool = False):
     """The stiff part of the rate (k_m ≈ 1e6 1/s), linear and diagonal in the state: taken implicitly
-    by IMEX solvers, exactly by ``jaxclear._lawson``. Absolute form w(δ) k_m (δ̇ − m); offset form
+    by IMEX solvers, exactly by ``jaxclear.solve._lawson``. Absolute form w(δ) k_m (δ̇ − m); offset form
     −w(δ) k_m u, a pure decay."""
     w = freeze_weight(penetration, smoothing)
     if offset:

@@ -4,8 +4,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_nonnegative, check_positive
-from .._smooth import smooth_ramp
+from .._core._checks import check_nonnegative, check_positive
+from .._core._smooth import smooth_ramp
 from ..contact._base import Smoothing, _array
 from ..contact._hertz import _optional_array
 from ._base import AbstractFrictionLaw

@@ -15,8 +15,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_nonnegative, check_positive
-from .._smooth import smooth_abs
+from .._core._checks import check_nonnegative, check_positive
+from .._core._smooth import smooth_abs
 from ..contact._base import Smoothing, _array
 from ._base import AbstractFrictionLaw
 

@@ -1,6 +1,6 @@
 """Friction laws by kebab-case name, for configuration files and the command line."""
 
-from .._registry import Registry
+from .._core._registry import Registry
 from ._base import AbstractFrictionLaw
 from ._coulomb import Coulomb, ModifiedCoulomb
 from ._lugre import LuGre
@@ -15,7 +15,7 @@ FRICTION_LAWS: Registry[AbstractFrictionLaw] = Registry(
         "lugre": LuGre,
     },
 )
-"""Read-only mapping from registry name to friction law class (``jaxclear._registry.Registry``)."""
+"""Read-only mapping from registry name to friction law class (``jaxclear._core._registry.Registry``)."""
 
 
 def friction_law_from_name(name: str, **params) -> AbstractFrictionLaw:

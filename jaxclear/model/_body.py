@@ -4,7 +4,7 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_positive, check_shape
+from .._core._checks import check_finite, check_positive, check_shape
 
 GROUND = "ground"
 """Reserved body name for the fixed frame. Points on ground are given in global coordinates."""

@@ -14,14 +14,14 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import (
+from .._core._checks import (
     check_finite,
     check_open_interval,
     check_positive,
     check_shape,
     is_concrete,
 )
-from .._errors import ModelError
+from .._core._errors import ModelError
 from ..contact import Hybrid
 from ..contact._base import AbstractContactLaw, ContactGeometry, Smoothing
 from ..friction import LuGre

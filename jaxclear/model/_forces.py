@@ -15,8 +15,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_nonnegative, check_shape
-from .._geometry import dot2, point_force_to_generalized, point_position, point_velocity
+from .._core._checks import check_finite, check_nonnegative, check_shape
+from .._core._geometry import dot2, point_force_to_generalized, point_position, point_velocity
 
 
 def _array(x):

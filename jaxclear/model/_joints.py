@@ -14,8 +14,8 @@ import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_shape
-from .._geometry import body_coordinates, dot2, point_position
+from .._core._checks import check_finite, check_shape
+from .._core._geometry import body_coordinates, dot2, point_position
 
 
 def _array(x):

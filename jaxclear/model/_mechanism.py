@@ -7,8 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._checks import check_finite, check_shape
-from .._errors import ModelError
+from .._core._checks import check_finite, check_shape
+from .._core._errors import ModelError
 from ._body import GROUND, Body
 from ._clearance import ClearanceJoint
 from ._forces import AbstractForceElement

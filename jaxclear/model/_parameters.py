@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
-from .._errors import ModelError
+from .._core._errors import ModelError
 from ._joints import ConstantSpeedDriver
 from ._mechanism import Mechanism
 

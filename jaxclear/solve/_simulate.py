@@ -12,16 +12,13 @@ import numpy as np
 from jax.interpreters import ad
 from jaxtyping import ArrayLike
 
-from ._checks import is_concrete, staging
-from ._errors import AssemblyError, ModelError, SimulationError
-from ._executable_cache import stored_jit
-from ._extremes import ExtremesTracking, Observation
-from ._smooth import safe_norm
-from ._solver import SolverConfig, solver_config
-from ._trajectory import INPUT_ERRORS, Trajectory
-from .dynamics._assembly import assemble_state, check_assembly
-from .dynamics._batched import groups
-from .dynamics._equations import (
+from .._core._checks import is_concrete, staging
+from .._core._errors import AssemblyError, ModelError, SimulationError
+from .._core._executable_cache import stored_jit
+from .._core._smooth import safe_norm
+from ..dynamics._assembly import assemble_state, check_assembly
+from ..dynamics._batched import groups
+from ..dynamics._equations import (
     clearance_outputs,
     evaluate,
     generalized_forces,
@@ -31,7 +28,10 @@ from .dynamics._equations import (
     solve_accelerations,
     vector_field,
 )
-from .dynamics._equations import initial_state as dynamics_initial_state
+from ..dynamics._equations import initial_state as dynamics_initial_state
+from ._extremes import ExtremesTracking, Observation
+from ._solver import SolverConfig, solver_config
+from ._trajectory import INPUT_ERRORS, Trajectory
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
@@ -107,7 +107,7 @@ def _input_error(mechanism, y0, assembled_ok):
 
 
 def _observe(t, y, mechanism) -> Observation:
-    """What ``ExtremesTracking`` records at the end of each step (``jaxclear._extremes``).
+    """What ``ExtremesTracking`` records at the end of each step (``jaxclear.solve._extremes``).
 
     The part of the right-hand side the extremes need, no more: forces (keeping each clearance
     joint's kinematics and contact forces from the same pass) and accelerations, without the
@@ -208,7 +208,7 @@ def _simulate_core(
     saveat = diffrax.SaveAt(
         subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=track_extremes
     )
-    # IMEX methods run as AffineKenCarp (closed-form stage solves, jaxclear/_imex.py) on the full
+    # IMEX methods run as AffineKenCarp (closed-form stage solves, jaxclear/solve/_imex.py) on the full
     # vector field, with the stiff part passed to the solver.
     terms = diffrax.ODETerm(_FULL)
     # Exponential methods integrate the impact memory in offset form u = m − δ̇ (a pure decay in

@@ -43,20 +43,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._errors import DataError, ModelError
-from .._measurements import Measurements
-from .._signals import signal_names, signals
-from .._simulate import simulate
-from .._solver import SolverConfig, solver_config
+from .._core._errors import DataError, ModelError
+from .._core._progress import progress_bar
+from ..analysis._signals import signal_names, signals
+from ..io._measurements import Measurements
 from ..model import Mechanism, with_parameters
+from ..solve._simulate import simulate
+from ..solve._solver import SolverConfig, solver_config
 from ._ensemble import map_members
-from ._parameter_space import (
-    FitParameter,
-    ParameterSpace,
-    parse_parameters,
-    progress_bar,
-    scan_values,
-)
+from ._parameter_space import FitParameter, ParameterSpace, parse_parameters, scan_values
 
 DEFAULT_HORIZONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
 """Fractions of the record fitted in turn (module doc, "growing windows")."""
@@ -540,6 +535,6 @@ def _levenberg_marquardt(evaluate, u, count, max_iterations, tolerance, report):
 
 
 def _gradient_solver(mechanism):
-    from .. import _solver
+    from ..solve import _solver
 
     return _solver.gradient_solver(mechanism)

@@ -24,12 +24,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Bool, Float
 
-from .._checks import is_concrete
-from .._simulate import assemble, initial_state, simulate
-from .._solver import SolverConfig, recommended_solver, solver_config
+from .._core._checks import is_concrete
 from ..dynamics._assembly import assemble_state
 from ..dynamics._constraints import constraint_velocity, constraints
 from ..model import Mechanism, with_parameters
+from ..solve._simulate import assemble, initial_state, simulate
+from ..solve._solver import SolverConfig, recommended_solver, solver_config
 from ._ensemble import DEFAULT_CHUNK, map_members, swept_values
 
 METHODS = ("tangent", "two_trajectory")

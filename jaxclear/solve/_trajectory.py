@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float, Int
 
+from ..model import Mechanism
 from ._extremes import Extremes
-from .model import Mechanism
 
 INPUT_ERRORS = {
     1: "mechanism cannot be assembled: run jaxclear.assemble() on it for details",
@@ -164,3 +164,66 @@ class Trajectory(eqx.Module):
             t_final=np.asarray(self.t_final).tolist(),
             succeeded=np.asarray(self.succeeded).tolist(),
         )
+
+
+# Units and descriptions of the per-instant outputs of a clearance joint (Trajectory.clearance);
+# keys not listed here are written with an empty unit.
+CLEARANCE_OUTPUTS = {
+    "ecc_x": ("m", "journal-centre eccentricity relative to the bearing centre, x component"),
+    "ecc_y": ("m", "journal-centre eccentricity relative to the bearing centre, y component"),
+    "penetration": ("m", "penetration depth (negative: free flight)"),
+    "penetration_rate": ("m/s", "rate of the penetration depth"),
+    "normal_force": ("N", "normal contact force"),
+    "friction_force": ("N", "friction force"),
+    "tangential_force": ("N", "tangential contact force"),
+    "slip_velocity": ("m/s", "relative tangential (slip) velocity"),
+    "impact_velocity": ("m/s", "impact-velocity memory m = δ̇ + u (latched at contact onset)"),
+    "friction_state": ("m", "friction-law internal state (LuGre bristle deflection z)"),
+}
+
+
+BODY_OUTPUTS = (
+    ("x", 0, "q", "m", "x of the centre of mass"),
+    ("y", 1, "q", "m", "y of the centre of mass"),
+    ("phi", 2, "q", "rad", "angle of the body frame to global x"),
+    ("vx", 0, "qd", "m/s", "velocity of the centre of mass, x"),
+    ("vy", 1, "qd", "m/s", "velocity of the centre of mass, y"),
+    ("omega", 2, "qd", "rad/s", "angular velocity"),
+    ("ax", 0, "qdd", "m/s^2", "acceleration of the centre of mass, x"),
+    ("ay", 1, "qdd", "m/s^2", "acceleration of the centre of mass, y"),
+    ("alpha", 2, "qdd", "rad/s^2", "angular acceleration"),
+)
+"""Per-body columns ``<body>_<name>`` of a general mechanism: (name, coordinate, array, unit, description)."""
+
+
+def _select(traj, keep: np.ndarray):
+    """The trajectory at the saved instants where ``keep`` (boolean, (N,)) is true."""
+    index = np.flatnonzero(keep)
+    changes = {
+        name: jax.tree_util.tree_map(lambda x: x[index], getattr(traj, name))
+        for name in PER_INSTANT
+    }
+    return dataclasses.replace(traj, **changes)
+
+
+def window(traj, t_start: float):
+    """The saved instants at or after ``t_start`` (s): the kept window after skipped revolutions.
+
+    Args:
+        traj: a single ``Trajectory``.
+        t_start: first kept time, s; a hair of round-off (1e-9 of the horizon) is allowed so that
+            the instant at exactly ``t_start`` stays.
+    """
+    t = np.asarray(traj.t)
+    slack = 1e-9 * max(abs(float(t[-1])), 1e-300)
+    return _select(traj, t >= t_start - slack)
+
+
+def finite_rows(traj):
+    """The saved instants whose coordinates, velocities, accelerations and multipliers are all finite
+    (a failed solve leaves inf/nan after the time it reached)."""
+    finite = np.ones(np.asarray(traj.t).shape, dtype=bool)
+    for name in ("t", "q", "qd", "qdd", "multipliers", "input_torque"):
+        values = np.asarray(getattr(traj, name))
+        finite &= np.all(np.isfinite(values.reshape(values.shape[0], -1)), axis=1)
+    return _select(traj, finite)

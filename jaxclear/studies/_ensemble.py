@@ -42,14 +42,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._outputs import atomic_write, write_json
-from .._signals import signal_names, signals
-from .._simulate import simulate
-from .._solver import SolverConfig, solver_config
-from .._startup import ideal_mechanism
-from .._trajectory import INPUT_ERRORS
-from ..model import Mechanism, parameter_info, parameter_names, with_parameters
-from ._modes import (
+from .._core._progress import progress_bar
+from ..analysis._modes import (
     CONTINUOUS,
     FREE,
     IMPACT,
@@ -59,8 +53,14 @@ from ._modes import (
     located_contacts,
     shares_of_contacts,
 )
-from ._parameter_space import progress_bar
-from ._statistics import statistics
+from ..analysis._signals import signal_names, signals
+from ..analysis._statistics import statistics
+from ..io import atomic_write, write_json
+from ..model import Mechanism, parameter_info, parameter_names, with_parameters
+from ..solve._simulate import simulate
+from ..solve._solver import SolverConfig, solver_config
+from ..solve._startup import ideal_mechanism
+from ..solve._trajectory import INPUT_ERRORS
 
 DEFAULT_CHUNK = 64
 """Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""

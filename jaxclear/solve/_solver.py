@@ -37,7 +37,7 @@ class SolverConfig(eqx.Module):
     Attributes:
         method: solver name, one of ``METHODS`` (explicit: tsit5, dopri5, dopri8, bosh3;
             exponential: lawson-tsit5, Tsit5 with the impact-memory decay taken exactly
-            (``jaxclear._lawson``);
+            (``jaxclear.solve._lawson``);
             implicit, for stiff problems: kvaerno3, kvaerno4, kvaerno5; IMEX, implicit only in the
             stiff internal states (LuGre z, impact memory relaxation): kencarp3, kencarp4, kencarp5).
         rtol, atol: error-control tolerances of the adaptive step (mixed units: m, rad, m/s, ...).

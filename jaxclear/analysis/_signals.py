@@ -15,9 +15,9 @@ from collections.abc import Callable, Sequence
 
 from jaxtyping import Array, Float
 
-from ._outputs import BODY_OUTPUTS, CLEARANCE_OUTPUTS, is_slider_crank
-from ._trajectory import Trajectory
-from .model import Mechanism, RevoluteJoint, TranslationalJoint
+from ..mechanisms import is_slider_crank
+from ..model import Mechanism, RevoluteJoint, TranslationalJoint
+from ..solve._trajectory import BODY_OUTPUTS, CLEARANCE_OUTPUTS, Trajectory
 
 CLEARANCE_SIGNALS = tuple(
     key
@@ -154,3 +154,18 @@ def signals(traj: Trajectory, names: Sequence[str] | None = None) -> dict[str, S
                 f"{', '.join(table)}."
             )
     return {name: table[name](traj) for name in names}
+
+
+def checked_signal_names(mechanism: Mechanism, names, parameter: str) -> tuple[str, ...]:
+    """``names`` as a tuple, each a signal of ``mechanism``; ``parameter`` names them in errors."""
+    if isinstance(names, str):
+        raise TypeError(f"{parameter} must be a sequence of signal names; write [{names!r}].")
+    names = tuple(names)
+    valid = signal_names(mechanism)
+    bad = [n for n in names if n not in valid]
+    if bad or not names:
+        raise ValueError(
+            f"{parameter}: {bad or 'no names'} {'are' if len(bad) != 1 else 'is'} not signals of this "
+            f"mechanism; choose among {valid}."
+        )
+    return names

@@ -36,7 +36,7 @@ from jaxtyping import Array, Float
 
 
 class Observation(eqx.Module):
-    """Quantities observed at one instant (built by ``jaxclear._simulate``).
+    """Quantities observed at one instant (built by ``jaxclear.solve._simulate``).
 
     Attributes:
         accelerations: q̈ (n,), m/s² and rad/s².

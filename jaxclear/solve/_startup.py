@@ -13,8 +13,8 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from ..model import Mechanism, RevoluteJoint
 from ._simulate import simulate
-from .model import Mechanism, RevoluteJoint
 
 REACTION_HORIZON = 1e-7
 """s: the reaction at t0 is read from a solve of the ideal mechanism over this short span (its first

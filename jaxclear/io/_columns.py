@@ -1,60 +1,19 @@
-"""Result files of a run: ``results.csv``, ``results.npz`` and ``run.json``.
+"""Output columns of a run: a ``Trajectory`` as named, unit-tagged 1-D columns.
 
-``result_columns`` turns a ``Trajectory`` into named, unit-tagged 1-D columns (one value per saved
-instant); the CSV, the NPZ archive and the plots (``jaxclear.plot``) all read these columns, so a
-column added here appears everywhere. Files are written to a temporary name in the output folder
-and renamed into place, so an interrupted run never leaves a truncated file under a final name.
+``result_columns`` turns a ``Trajectory`` into columns with one value per saved instant; the CSV,
+the NPZ archive (``jaxclear.io.write_results``) and the plots (``jaxclear.plot``) all read these
+columns, so a column added here appears everywhere.
 """
 
 import dataclasses
-import json
-import os
-import platform
-import tempfile
-from collections.abc import Callable
-from importlib import metadata
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from ._trajectory import PER_INSTANT
-from .model import RevoluteJoint, TranslationalJoint
-
-CSV_NAME = "results.csv"
-NPZ_NAME = "results.npz"
-RUN_JSON_NAME = "run.json"
-RUN_FORMAT = 1
-"""Version of the run.json layout; bump when keys change meaning."""
-
-CSV_FORMAT = "%.12g"
-"""12 significant digits in the CSV (results.npz keeps full float64 precision)."""
-
-VERSIONED_PACKAGES = (
-    "jaxclear",
-    "jax",
-    "jaxlib",
-    "diffrax",
-    "equinox",
-    "lineax",
-    "optimistix",
-    "numpy",
-)
-
-# Units and descriptions of the per-instant outputs of a clearance joint (Trajectory.clearance);
-# keys not listed here are written with an empty unit.
-CLEARANCE_OUTPUTS = {
-    "ecc_x": ("m", "journal-centre eccentricity relative to the bearing centre, x component"),
-    "ecc_y": ("m", "journal-centre eccentricity relative to the bearing centre, y component"),
-    "penetration": ("m", "penetration depth (negative: free flight)"),
-    "penetration_rate": ("m/s", "rate of the penetration depth"),
-    "normal_force": ("N", "normal contact force"),
-    "friction_force": ("N", "friction force"),
-    "tangential_force": ("N", "tangential contact force"),
-    "slip_velocity": ("m/s", "relative tangential (slip) velocity"),
-    "impact_velocity": ("m/s", "impact-velocity memory m = δ̇ + u (latched at contact onset)"),
-    "friction_state": ("m", "friction-law internal state (LuGre bristle deflection z)"),
-}
+from ..analysis import MODE_NAMES, combination_shares, statistics, trajectory_modes
+from ..analysis._modes import DEFAULT_CONTINUOUS_FRACTION
+from ..mechanisms import is_slider_crank
+from ..model import RevoluteJoint, TranslationalJoint
+from ..solve._trajectory import BODY_OUTPUTS, CLEARANCE_OUTPUTS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -197,9 +156,6 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
                     )
                 )
     if traj.clearance:
-        from .analysis import MODE_NAMES, trajectory_modes
-        from .analysis._modes import DEFAULT_CONTINUOUS_FRACTION
-
         legend = ", ".join(f"{k} {v}" for k, v in MODE_NAMES.items())
         fraction = (
             DEFAULT_CONTINUOUS_FRACTION if continuous_fraction is None else continuous_fraction
@@ -264,26 +220,6 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     return cols
 
 
-BODY_OUTPUTS = (
-    ("x", 0, "q", "m", "x of the centre of mass"),
-    ("y", 1, "q", "m", "y of the centre of mass"),
-    ("phi", 2, "q", "rad", "angle of the body frame to global x"),
-    ("vx", 0, "qd", "m/s", "velocity of the centre of mass, x"),
-    ("vy", 1, "qd", "m/s", "velocity of the centre of mass, y"),
-    ("omega", 2, "qd", "rad/s", "angular velocity"),
-    ("ax", 0, "qdd", "m/s^2", "acceleration of the centre of mass, x"),
-    ("ay", 1, "qdd", "m/s^2", "acceleration of the centre of mass, y"),
-    ("alpha", 2, "qdd", "rad/s^2", "angular acceleration"),
-)
-"""Per-body columns ``<body>_<name>`` of a general mechanism: (name, coordinate, array, unit, description)."""
-
-
-def is_slider_crank(mechanism) -> bool:
-    """Whether ``mechanism`` is the benchmark slider–crank (bodies ``crank``, ``rod``, ``slider``),
-    whose results keep their established columns ``slider_x``, ``slider_v``, ``slider_a``."""
-    return tuple(mechanism.body_names) == ("crank", "rod", "slider")
-
-
 def body_columns(traj) -> list[Column]:
     """Position, velocity and acceleration of every body's centre of mass and frame (``BODY_OUTPUTS``)."""
     cols = []
@@ -295,45 +231,8 @@ def body_columns(traj) -> list[Column]:
     return cols
 
 
-def _select(traj, keep: np.ndarray):
-    """The trajectory at the saved instants where ``keep`` (boolean, (N,)) is true."""
-    import jax
-
-    index = np.flatnonzero(keep)
-    changes = {
-        name: jax.tree_util.tree_map(lambda x: x[index], getattr(traj, name))
-        for name in PER_INSTANT
-    }
-    return dataclasses.replace(traj, **changes)
-
-
-def window(traj, t_start: float):
-    """The saved instants at or after ``t_start`` (s): the kept window after skipped revolutions.
-
-    Args:
-        traj: a single ``Trajectory``.
-        t_start: first kept time, s; a hair of round-off (1e-9 of the horizon) is allowed so that
-            the instant at exactly ``t_start`` stays.
-    """
-    t = np.asarray(traj.t)
-    slack = 1e-9 * max(abs(float(t[-1])), 1e-300)
-    return _select(traj, t >= t_start - slack)
-
-
-def finite_rows(traj):
-    """The saved instants whose coordinates, velocities, accelerations and multipliers are all finite
-    (a failed solve leaves inf/nan after the time it reached)."""
-    finite = np.ones(np.asarray(traj.t).shape, dtype=bool)
-    for name in ("t", "q", "qd", "qdd", "multipliers", "input_torque"):
-        values = np.asarray(getattr(traj, name))
-        finite &= np.all(np.isfinite(values.reshape(values.shape[0], -1)), axis=1)
-    return _select(traj, finite)
-
-
 def mode_shares(traj, continuous_fraction: float, reference_period: float | None = None) -> dict:
     """Time share of each combination of contact modes over the saved instants (docs/model.md §7)."""
-    from .analysis import combination_shares, trajectory_modes
-
     modes = trajectory_modes(traj, continuous_fraction, reference_period)
     return combination_shares({name: modes[name] for name in clearance_joint_names(traj)})
 
@@ -344,8 +243,6 @@ def run_statistics(traj) -> dict[str, float]:
     The values come from the solver's steps over the window that ``simulate``'s
     ``statistics_start`` opened (``jaxclear run`` passes the start of the kept revolutions).
     """
-    from .analysis import statistics
-
     return {name: float(value) for name, value in statistics(traj).items()}
 
 
@@ -362,120 +259,6 @@ def column_map(traj) -> dict[str, Column]:
     return {c.name: c for c in result_columns(traj)}
 
 
-# --- writing ------------------------------------------------------------------------------------
-
-
-def atomic_write(path: Path, write: Callable[[str], None]) -> Path:
-    """Call ``write(tmp_path)`` then rename the temporary file to ``path`` (same folder)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_csv(path: Path, columns: list[Column]) -> Path:
-    """Header of column names, then one row per instant (``CSV_FORMAT``)."""
-    data = np.column_stack([c.values for c in columns])
-    header = ",".join(c.name for c in columns)
-
-    def write(tmp):
-        with open(tmp, "w", newline="") as f:
-            np.savetxt(f, data, delimiter=",", fmt=CSV_FORMAT, header=header, comments="")
-
-    return atomic_write(path, write)
-
-
-def write_modes_csv(path: Path, events: dict) -> Path:
-    """modes.csv: one row per contact of each clearance joint (``analysis.contact_events``):
-    joint, onset_s, end_s, duration_s, mode (impact or continuous), finished (0 for a contact
-    still in progress at the end of the run), in time order."""
-    from .analysis import MODE_NAMES
-
-    rows = []
-    for joint, e in events.items():
-        for k in range(len(e["onset"])):
-            rows.append(
-                (
-                    float(e["onset"][k]),
-                    joint,
-                    float(e["end"][k]),
-                    float(e["duration"][k]),
-                    MODE_NAMES[int(e["mode"][k])],
-                    int(bool(e["finished"][k])),
-                )
-            )
-    rows.sort()
-
-    def write(tmp):
-        with open(tmp, "w", newline="", encoding="utf-8") as f:
-            f.write("joint,onset_s,end_s,duration_s,mode,finished\n")
-            for onset, joint, end, duration, mode, finished in rows:
-                f.write(f"{joint},{onset!r},{end!r},{duration!r},{mode},{finished}\n")
-
-    return atomic_write(path, write)
-
-
-def write_npz(path: Path, columns: list[Column]) -> Path:
-    """One float64 array per column, same names as the CSV."""
-
-    def write(tmp):
-        with open(tmp, "wb") as f:
-            arrays: dict[str, Any] = {c.name: c.values for c in columns}
-            np.savez(f, **arrays)
-
-    return atomic_write(path, write)
-
-
-def write_json(path: Path, data: dict) -> Path:
-    def write(tmp):
-        with open(tmp, "w") as f:
-            json.dump(_jsonable(data), f, indent=2, allow_nan=False)
-            f.write("\n")
-
-    return atomic_write(path, write)
-
-
-def _jsonable(x):
-    """Plain JSON types; non-finite floats become strings ("nan", "inf") to keep the file valid."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray | np.generic):
-        return _jsonable(x.tolist())
-    if isinstance(x, float) and not np.isfinite(x):
-        return str(x)
-    if isinstance(x, Path):
-        return str(x)
-    return x
-
-
-def package_versions() -> dict[str, str | None]:
-    """Installed versions of jaxclear and its numerical dependencies."""
-    versions = {}
-    for name in VERSIONED_PACKAGES:
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            versions[name] = None
-    versions["python"] = platform.python_version()
-    return versions
-
-
 def column_summary(columns: list[Column]) -> dict:
     """Units, descriptions and min/max of every column (for run.json)."""
     out = {}
@@ -488,32 +271,3 @@ def column_summary(columns: list[Column]) -> dict:
             max=float(finite.max()) if finite.size else None,
         )
     return out
-
-
-def write_results(
-    out_dir: Path, traj, run_info: dict, continuous_fraction: float | None = None
-) -> dict[str, Path]:
-    """Write results.npz, results.csv and (last) run.json into ``out_dir``.
-
-    Args:
-        out_dir: output folder (created if missing).
-        traj: a successful single ``Trajectory``.
-        run_info: configuration, timings, ... merged into run.json.
-        continuous_fraction: contact-mode threshold (fraction of a crank period) for ``<J>_mode``.
-
-    Returns:
-        ``{"csv": path, "npz": path, "run_json": path}``.
-    """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    columns = result_columns(traj, continuous_fraction)
-    paths = {
-        "npz": write_npz(out_dir / NPZ_NAME, columns),
-        "csv": write_csv(out_dir / CSV_NAME, columns),
-    }
-    info = dict(run_info)
-    info["columns"] = column_summary(columns)
-    info.setdefault("files", [])
-    info["files"] = sorted({*info["files"], CSV_NAME, NPZ_NAME, RUN_JSON_NAME})
-    paths["run_json"] = write_json(out_dir / RUN_JSON_NAME, info)
-    return paths

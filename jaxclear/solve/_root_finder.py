@@ -12,7 +12,7 @@ LU factorisation of ``diffrax.VeryChord``; the iteration converges in two steps 
 structure, or in one step when the start has its q, q̇ rows at their exact value (zero) and the
 rates are affine in the internal states (``affine=True``: measured on case c of
 benchmarks/bench_clearance.py, 64 → 51 µs per KenCarp5 step). ``SolverConfig`` now uses the same
-closed form without the root-finding loop (``jaxclear._imex.AffineKenCarp``, 38–42 µs per step);
+closed form without the root-finding loop (``jaxclear.solve._imex.AffineKenCarp``, 38–42 µs per step);
 this root finder remains for diffrax's KenCarp when no stiff function is passed to
 ``make_solver``. With ``affine=False`` convergence is tested as in ``VeryChord`` (a stiff part
 that breaks the assumptions is then reported as a failed solve, not silently accepted).

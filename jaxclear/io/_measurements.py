@@ -23,7 +23,7 @@ import equinox as eqx
 import numpy as np
 from jaxtyping import Float
 
-from ._errors import DataError
+from .._core._errors import DataError
 
 TIME = "t"
 """Name of the time column, s."""

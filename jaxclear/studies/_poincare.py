@@ -17,11 +17,12 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, ArrayLike, Float
 
-from .._checks import is_concrete
-from .._signals import signal_names, signals
-from .._simulate import simulate
-from .._solver import SolverConfig, solver_config
+from .._core._checks import is_concrete
+from ..analysis._orbits import distinct_points
+from ..analysis._signals import checked_signal_names, signal_names, signals
 from ..model import Mechanism, with_parameters
+from ..solve._simulate import simulate
+from ..solve._solver import SolverConfig, solver_config
 from ._ensemble import DEFAULT_CHUNK, map_members, swept_values
 
 DEFAULT_SKIP_REVOLUTIONS = 1
@@ -45,20 +46,6 @@ def default_section_signals(mechanism: Mechanism) -> tuple[str, ...]:
     elif mechanism.driver is not None:
         out.append(f"{mechanism.driver.body}_torque")
     return tuple(n for n in out if n in names)
-
-
-def _check_names(mechanism: Mechanism, names, parameter: str) -> tuple[str, ...]:
-    if isinstance(names, str):
-        raise TypeError(f"{parameter} must be a sequence of signal names; write [{names!r}].")
-    names = tuple(names)
-    valid = signal_names(mechanism)
-    bad = [n for n in names if n not in valid]
-    if bad or not names:
-        raise ValueError(
-            f"{parameter}: {bad or 'no names'} {'are' if len(bad) != 1 else 'is'} not signals of this "
-            f"mechanism; choose among {valid}."
-        )
-    return names
 
 
 def crank_speed(mechanism: Mechanism) -> Float[Array, ""]:
@@ -182,7 +169,7 @@ def poincare_section(
             point or for ``revolutions`` points, a bad ``skip_revolutions`` or ``phase``.
     """
     speed = crank_speed(mechanism)
-    names = _check_names(
+    names = checked_signal_names(
         mechanism, default_section_signals(mechanism) if signals is None else signals, "signals"
     )
     skip = _check_int(skip_revolutions, "skip_revolutions", 0)
@@ -221,36 +208,6 @@ def poincare_section(
         mechanism, t1, revolutions, t0, skip, names, config, phase, y0, throw
     )
     return {**points, "t": times}
-
-
-def phase_portrait(
-    traj, x: str, y: str, *, start: float | None = None
-) -> tuple[Float[Array, "*batch N"], Float[Array, "*batch N"]]:
-    """Two signals of a trajectory against each other, e.g. ``("slider_x", "slider_v")`` or a
-    journal orbit ``("B_ecc_x", "B_ecc_y")``: a closed curve for a periodic response.
-
-    Args:
-        traj: a ``Trajectory``.
-        x, y: signal names (``jaxclear.signal_names``).
-        start: leave out the samples before this time, s (start-up).
-
-    Returns:
-        ``(x values, y values)`` in SI units.
-
-    Raises:
-        ValueError: an unknown name, or ``start`` after the last sample.
-    """
-    names = _check_names(traj.mechanism, (x, y), "x, y")
-    values = signals(traj, names)
-    xs, ys = values[x], values[y]
-    if start is not None:
-        t = np.asarray(traj.t)
-        t = t.reshape(-1, t.shape[-1])[0]
-        keep = np.flatnonzero(t >= start)
-        if keep.size == 0:
-            raise ValueError(f"start = {start} s is after the last sample ({t[-1]} s).")
-        xs, ys = xs[..., keep], ys[..., keep]
-    return xs, ys
 
 
 @dataclasses.dataclass(frozen=True)
@@ -333,7 +290,7 @@ def bifurcation_points(
             errors of ``poincare_section``'s arguments.
     """
     values = swept_values(mechanism, name, values)
-    names = _check_names(
+    names = checked_signal_names(
         mechanism, default_section_signals(mechanism) if signals is None else signals, "signals"
     )
     skip = _check_int(skip_revolutions, "skip_revolutions", 0)
@@ -356,29 +313,3 @@ def bifurcation_points(
         points={n: np.asarray(points[n]) for n in names},
         succeeded=np.asarray(ok, dtype=bool),
     )
-
-
-def distinct_points(points, tolerance: float) -> np.ndarray:
-    """Number of distinct values among section points, per row: 1 for a periodic response
-    (period 1), k for period k, about the number of points for a quasi-periodic or chaotic one.
-
-    Values closer than ``tolerance`` (absolute, in the signal's unit) after sorting are one value;
-    choose it above the solver's scatter of a periodic orbit (docs/chaos.md) and below the
-    separation of the branches you want to tell apart. NaN points are ignored (0 for a row of NaN).
-
-    Args:
-        points: (..., revolutions) section values (array-like).
-        tolerance: ≥ 0.
-
-    Returns:
-        Integer array of the leading shape.
-    """
-    if not tolerance >= 0:
-        raise ValueError(f"tolerance must be >= 0, got {tolerance!r}.")
-    x = np.asarray(points, dtype=float)
-    rows = x.reshape(-1, x.shape[-1]) if x.ndim else x.reshape(1, 1)
-    counts = []
-    for row in rows:
-        row = np.sort(row[np.isfinite(row)])
-        counts.append(0 if row.size == 0 else 1 + int(np.sum(np.diff(row) > tolerance)))
-    return np.asarray(counts, dtype=int).reshape(x.shape[:-1])

@@ -38,14 +38,15 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .._errors import ModelError
-from .._signals import signal_names, signals
-from .._simulate import simulate
-from .._solver import SolverConfig, recommended_solver, solver_config
-from .._startup import ideal_mechanism
+from .._core._errors import ModelError
+from .._core._progress import progress_bar
+from ..analysis._signals import signal_names, signals
+from ..analysis._statistics import statistics
 from ..model import Mechanism, with_parameters
-from ._parameter_space import FitParameter, ParameterSpace, parse_parameters, progress_bar
-from ._statistics import statistics
+from ..solve._simulate import simulate
+from ..solve._solver import SolverConfig, recommended_solver, solver_config
+from ..solve._startup import ideal_mechanism
+from ._parameter_space import FitParameter, ParameterSpace, parse_parameters
 
 FORWARD_MODE_PARAMETERS = 4
 """Up to this many design parameters the gradient is taken in forward mode (cost ≈ 1 + 0.5 p
@@ -337,6 +338,6 @@ def _values(specs, u) -> dict[str, float]:
 
 
 def _gradient_solver(mechanism):
-    from .. import _solver
+    from ..solve import _solver
 
     return _solver.gradient_solver(mechanism)

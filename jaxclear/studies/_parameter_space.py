@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
 
-from .._errors import ModelError
+from .._core._errors import ModelError
 from ..model import Mechanism, get_parameter, parameter_info
 
 DEFAULT_SPAN = 4.0
@@ -261,10 +261,3 @@ def _halton(n: int, dims: int, seed: int) -> np.ndarray:
                 k //= base
             out[i, d] = x
     return out
-
-
-def progress_bar(on: bool, total: int, description: str):
-    """A tqdm bar over ``total`` evaluations (disabled, so updates cost nothing, when not ``on``)."""
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc=description, unit="solve", disable=not on)
