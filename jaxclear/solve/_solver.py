@@ -45,13 +45,8 @@ class SolverConfig(eqx.Module):
         dt0: initial step, s (``None``: chosen by diffrax).
         dtmax: largest step, s (``None``: unbounded).
         pcoeff, icoeff: PID controller gains (``None``: 0.1/0.7 for explicit methods, 0.3/0.3
-            for implicit ones). The PI gains for explicit methods were chosen on the three
-            benchmark cases (benchmarks/bench_clearance.py, Tsit5, rtol 1e-6): against the integral
-            controller 0/1 they took 5449/8958/49078 steps instead of 7154/9650/53822 (rejected
-            1030/1827/7423 instead of 1694/2512/12239); 0.2/0.4, 0.1/0.5, 0.2/0.6 and 0/0.7 were
-            within ±5 % of 0.1/0.7 in total steps. Indicative only: the same run's step count moves
-            by up to ~30 % with rounding-level changes (e.g. case a: 5449 steps, 7185 with XLA's
-            fusion emitters off), because the contact sequence is sensitive (docs/model.md §5b).
+            for implicit ones; how the explicit gains were chosen: docs/solvers.md, "Choosing the
+            method").
         newton_rtol, newton_atol: tolerances of the implicit stage equations (chord iteration).
             Loose values (≈√rtol) avoid step-size collapse at impacts (docs/model.md §5b).
         checkpoints: reverse-mode checkpoints (``reverse_adjoint``): how many solver steps' states
@@ -190,38 +185,27 @@ Tsit5, best for ideal joints and frictionless/Coulomb contact), ``accurate`` (Kv
 tolerances).
 
 Not a preset: method ``lawson-tsit5`` (Tsit5 with the impact-memory decay taken exactly). Tsit5's
-steps in free flight are held below ~3.5 µs by that decay, which also makes it more accurate than
-its tolerance asks; Lawson–Tsit5 is free of the limit and takes the accuracy the tolerance allows.
-On the one-joint benchmark (README, "Accuracy" and "Performance"): at rtol 1e-6 it needs about half
-Tsit5's steps, but over the first contacts its orbit was up to 0.44 µm off the converged one where
-Tsit5's stayed within 0.13 µm; at rtol 1e-7 it is within 0.017 µm for about Tsit5's steps at 1e-6."""
+steps in free flight are limited by that decay, which also makes it more accurate than its
+tolerance asks; Lawson–Tsit5 is free of the limit and takes the accuracy the tolerance allows
+(fewer steps at the same rtol, a larger error: docs/solvers.md, "Accuracy")."""
 
 
 def recommended_solver(mechanism) -> SolverConfig:
     """What ``solver="auto"`` picks for a mechanism: ``imex`` if a clearance joint has a friction law
     with internal states (LuGre), ``fast`` (Tsit5) otherwise.
 
-    Measured on the benchmark slider–crank (benchmarks/bench_clearance.py and the default
-    ``jaxclear run``, 2 revolutions at 5000 rpm, rtol 1e-6, one core): with LuGre the bristle state
-    makes Tsit5 take ~5× more steps (three joints, hybrid law: Tsit5 run 1.52 s / 48 011 steps,
-    KenCarp5 with ``DiagonalNewton`` 0.77 s / 9 424 steps, Kvaerno5 3.3 s; KenCarp5 with the
-    closed-form stage solves of ``AffineKenCarp`` then took 0.477 s / 6 773 steps); without internal
-    friction states Tsit5 is the fastest (ideal joints, Coulomb-type friction). Since each stage
-    solves and evaluates in one pass (``dynamics._equations.implicit_stage``) KenCarp4's six
-    stages beat KenCarp5's eight: L-N + LuGre, three joints (case c), run 0.236–0.331 s against
-    0.270–0.361 s over rtol × 0.8 … 1.25 (7 955–10 988 and 7 455–9 804 steps); the default run
-    0.521 s / 6 487 steps against 0.651 s / 6 002 steps, the pin-on-rod example 0.870 s against
-    1.002 s. Over the first contacts both take the same branch of the first stick phase as before
-    (docs/solvers.md, "Accuracy").
+    With LuGre the bristle state makes Tsit5 take several times more steps than the IMEX methods,
+    which are implicit in that state only; without internal friction states Tsit5 is the fastest.
+    The measurements behind the choice: docs/solvers.md, "Choosing the method".
     """
     stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
     return PRESETS["imex" if stiff else "fast"]
 
 
 GRADIENT_MAX_STEPS = 200_000
-"""Step budget of ``gradient_solver``: one revolution at 5000 rpm took 15 300 steps (one joint,
-Coulomb-type friction) to about 115 000 (three joints, LuGre) at its settings. Reverse mode stores
-every step (``checkpoints = max_steps - 1``); for longer solves raise both with
+"""Step budget of ``gradient_solver``: one revolution at 5000 rpm at its settings fits (step counts:
+docs/differentiation.md, "Settings for gradients"). Reverse mode stores every step
+(``checkpoints = max_steps - 1``); for longer solves raise both with
 ``config.replace(max_steps=n, checkpoints=n - 1)``."""
 
 
@@ -237,48 +221,14 @@ def gradient_solver(mechanism) -> SolverConfig:
     - Friction with internal states (LuGre): ``tsit5`` at rtol 1e-12, atol 1e-15, steps of at
       most 1 µs.
 
-    Measured on the benchmark slider–crank at 5000 rpm, loss = squared residuals of slider x, slider
-    acceleration and crank torque at 120 instants of one revolution (12 ms) against the ideal-joint
-    responses, derivatives with respect to clearance, restitution, friction coefficient and rod mass
-    (``python benchmarks/gradient_accuracy.py``; table in docs/differentiation.md, "Settings for
-    gradients"):
-
-    - Tolerance. diffrax differentiates the steps taken, not the step-size choices: the gradient is
-      that of the discrete solve, and its error is not controlled. One joint (B), modified Coulomb:
-      over the revolution Lawson–Tsit5 was within 0.33 % (reverse) and 0.14 % (forward) of converged
-      central differences at rtol 1e-12, off by up to 2.1 % at 1e-11; Tsit5 at 1e-10 by up to 12 %.
-      One joint, LuGre: Tsit5 (steps ≤ 1 µs) within 0.34 % at rtol 1e-12; at 1e-11 reverse mode was
-      within 0.5 % but forward mode, on another step sequence, off by up to 14 %. The error of the
-      discrete gradient changes erratically with the step sequence, so the margin is wanted.
-    - Method. Taking the impact-memory decay exactly, Lawson–Tsit5 needs 15 300 steps per
-      revolution at rtol 1e-12 where Tsit5 needs 48 700. With LuGre the stiff bristle state, not the
-      memory, sets the step: Tsit5 took 31 300 steps (one joint); KenCarp5 at rtol 1e-11 took
-      37 800 and was off by up to 2.5 %.
-    - Reverse mode stores every step (``checkpoints = max_steps - 1``). With fewer checkpoints the
-      backward pass recomputes runs of steps from the stored ones, in differently compiled code; on
-      these solves the recomputed steps need not retrace the forward pass (a rounding-level change
-      alters the step and contact sequence, docs/model.md §5b) and the gradient then depended on
-      the count: one joint, Coulomb, loss over the first 4 ms, these settings, d loss / d clearance
-      by forward mode −122 189, by reverse mode −122 139 with every step stored and −122 190, +1.2e6,
-      −9.0e7, +5.7e5, −40 454 and −2.5e7 with 30, 300, 632, 1000, 3000 checkpoints and diffrax's
-      default (632 here); converged central differences −1.22e5
-      (``python benchmarks/gradient_accuracy.py --cases B-coulomb --windows 4 --checkpoints
-      30,300,632,1000,3000,default,199999``).
-    - Step bound with LuGre. Reverse mode through Tsit5 gave NaN gradients with LuGre friction over
-      3 ms (finite over 0.5 ms), while forward mode and finite differences stayed finite; presumably
-      a trial step far outside Tsit5's stability region (bristle and memory decay rates ~1e6 1/s),
-      rejected in the forward pass, still contributes 0 · inf to the backward pass. Steps of at
-      most 1 µs (2 µs too) removed the NaN; they cost 7 % more steps.
-
-    Cost over one revolution relative to a primal solve at these settings (``python
-    benchmarks/gradient_cost.py``, loaded 2-core machine): reverse mode 12–13.5× (one joint,
-    Coulomb, Lawson–Tsit5) and 4.3–5.1× (three joints, LuGre, Tsit5) for 1 to 16 parameters;
-    forward mode 5.5×, 10.4×, 33× (one joint) and 2.9×, 5.3×, 5.8× (three joints) for 1, 4, 16;
-    gradient compilation 16–50 s.
-
-    Over a revolution the three-joint mechanisms are chaotic: converged central differences of the
-    loss exist only over the first 4–5 ms (docs/differentiation.md), though forward and reverse mode
-    agree with each other over the whole revolution. Fit over windows (multiple shooting) there.
+    Why these settings, with the measurements (``python benchmarks/gradient_accuracy.py``,
+    ``python benchmarks/gradient_cost.py``): docs/differentiation.md, "Settings for gradients".
+    In short: diffrax differentiates the steps taken, not the step-size choices, so the gradient's
+    error is not controlled and the margin of rtol 1e-12 is wanted; reverse mode stores every step,
+    because with fewer checkpoints the recomputed steps need not retrace the forward pass; with
+    LuGre, steps of at most 1 µs keep reverse mode finite. Over a revolution the three-joint
+    mechanisms are chaotic: converged central differences exist only over the first milliseconds;
+    fit over windows (multiple shooting) there.
 
     Args:
         mechanism: the ``Mechanism`` to differentiate (its friction laws decide).
