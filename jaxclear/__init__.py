@@ -12,6 +12,8 @@ from . import analysis as analysis  # noqa: E402
 from . import mechanisms as mechanisms  # noqa: E402
 from ._core._errors import AssemblyError as AssemblyError  # noqa: E402
 from ._core._errors import DataError as DataError  # noqa: E402
+from ._core._errors import EnsembleError as EnsembleError  # noqa: E402
+from ._core._errors import InputCheck as InputCheck  # noqa: E402
 from ._core._errors import ModelError as ModelError  # noqa: E402
 from ._core._errors import SimulationError as SimulationError  # noqa: E402
 from ._core._executable_cache import compilation_cache_folder as compilation_cache_folder  # noqa: E402

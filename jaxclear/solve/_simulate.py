@@ -13,7 +13,7 @@ from jax.interpreters import ad
 from jaxtyping import ArrayLike
 
 from .._core._checks import is_concrete, staging
-from .._core._errors import AssemblyError, ModelError, SimulationError
+from .._core._errors import InputCheck, ModelError, SimulationError
 from .._core._executable_cache import stored_jit
 from .._core._smooth import safe_norm
 from ..dynamics._assembly import assemble_state, check_assembly
@@ -31,7 +31,7 @@ from ..dynamics._equations import (
 from ..dynamics._equations import initial_state as dynamics_initial_state
 from ._extremes import ExtremesTracking, Observation
 from ._solver import SolverConfig, solver_config
-from ._trajectory import INPUT_ERRORS, Trajectory
+from ._trajectory import Trajectory
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
@@ -97,12 +97,12 @@ def _outputs(mechanism, t, y) -> dict[str, Any]:
 
 
 def _input_error(mechanism, y0, assembled_ok):
-    """Code of the first failed input check (``INPUT_ERRORS``), 0 if none."""
+    """Code of the first failed input check (``InputCheck``), ``InputCheck.PASSED`` if none."""
     masses = mechanism.mass_diagonal
     return jnp.select(
         [~assembled_ok, jnp.any(~(masses > 0) | ~jnp.isfinite(masses)), jnp.any(~jnp.isfinite(y0))],
-        [1, 2, 3],
-        0,
+        [InputCheck.NOT_ASSEMBLED, InputCheck.MASS_OR_INERTIA, InputCheck.STATE_NOT_FINITE],
+        InputCheck.PASSED,
     ).astype(jnp.int32)
 
 
@@ -442,16 +442,15 @@ def raise_for_failure(traj: Trajectory, config: SolverConfig | None = None) -> N
 
 
 def raise_input_errors(traj: Trajectory) -> None:
-    """Raise ``ModelError`` (``AssemblyError`` for code 1) for the input checks made inside the
+    """Raise ``ModelError`` (``AssemblyError`` for ``InputCheck.NOT_ASSEMBLED``) for the input checks made inside the
     compiled solve; for a batch, name the failing members."""
     codes = np.atleast_1d(np.asarray(traj.input_error))
     bad = np.flatnonzero(codes)
     if bad.size == 0:
         return
-    code = int(codes[bad[0]])
+    check = InputCheck(int(codes[bad[0]]))
     where = f" (batch members {bad.tolist()} of {codes.size})" if np.ndim(traj.input_error) else ""
-    error = AssemblyError if code == 1 else ModelError
-    raise error(INPUT_ERRORS[code] + where + ".")
+    raise check.error(check.message + where + ".")
 
 
 def _result_message(result) -> str:

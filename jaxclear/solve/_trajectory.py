@@ -12,16 +12,6 @@ from jaxtyping import Array, Float, Int
 from ..model import Mechanism
 from ._extremes import Extremes
 
-INPUT_ERRORS = {
-    1: "mechanism cannot be assembled: run jaxclear.assemble() on it for details",
-    2: "mass and inertia of every body must be positive and finite (see Body)",
-    3: "initial state is not finite: check the parameters",
-}
-"""Codes of ``Trajectory.input_error``: checks made inside the compiled solve. They are returned
-as values, not raised by host callbacks (``eqx.error_if``), so that the compiled solve can be
-stored in JAX's persistent compilation cache."""
-
-
 PER_INSTANT = (
     "t",
     "q",
@@ -66,7 +56,7 @@ class Trajectory(eqx.Module):
         num_steps, num_accepted_steps, num_rejected_steps: solver statistics (scalars).
         result: diffrax outcome (``diffrax.RESULTS``); success unless the solve failed.
         input_error: 0, or the code of a check of the inputs made inside the compiled solve
-            (``INPUT_ERRORS``: the mechanism could not be assembled, a mass or inertia is not
+            (``jaxclear.InputCheck``: the mechanism could not be assembled, a mass or inertia is not
             positive, the initial state is not finite); ``simulate`` raises for it.
         t_final: time the solver reached, s (equals the end time on success).
         y_final: state at ``t_final``.
