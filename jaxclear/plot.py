@@ -461,7 +461,9 @@ def standard_plots(traj) -> list[tuple[str, str, str]]:
     return plots + [("constraint_violation.png", "constraint_violation", "time")]
 
 
-def _save(fig, out_dir: Path, filename: str, dpi: int) -> Path:
+def save_figure(fig, out_dir: Path, filename: str, dpi: int) -> Path:
+    """Write ``fig`` as ``out_dir/filename`` (PNG at ``dpi``) through a temporary file renamed into
+    place, so an interrupted write never leaves a truncated plot under the final name."""
     path = out_dir / filename
     tmp = out_dir / f".{filename}.tmp.png"
     fig.savefig(tmp, dpi=dpi)
@@ -505,18 +507,18 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
             fig = plot_constraint_violation(traj, reference=reference)
         else:
             fig = plot_vs_time(traj, quantity, reference=reference)
-        written.append(_save(fig, out_dir, filename, dpi))
+        written.append(save_figure(fig, out_dir, filename, dpi))
     mech = traj.mechanism
     if (
         mech.driver is not None
         and not is_slider_crank(mech)
         and any(isinstance(j, RevoluteJoint) for j in mech.joints)
     ):
-        written.append(_save(plot_joint_forces(traj), out_dir, "joint_forces.png", dpi))
+        written.append(save_figure(plot_joint_forces(traj), out_dir, "joint_forces.png", dpi))
     if traj.clearance and traj.mechanism.driver is not None:
-        written.append(_save(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
+        written.append(save_figure(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
         for name in clearance_joint_names(traj):
-            written.append(_save(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))
+            written.append(save_figure(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))
     return written
 
 
@@ -525,7 +527,7 @@ def save_mode_timeline(traj, out_dir, *, events=None, start=None, dpi: int = DPI
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     fig = plot_mode_timeline(traj, events=events, start=start)
-    return _save(fig, out_dir, "mode_timeline.png", dpi)
+    return save_figure(fig, out_dir, "mode_timeline.png", dpi)
 
 
 def plot_fit(result) -> Figure:
@@ -596,8 +598,8 @@ def save_fit_plots(result, out_dir, *, dpi: int = DPI) -> list[Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     return [
-        _save(plot_fit(result), out_dir, "fit.png", dpi),
-        _save(plot_loss(result), out_dir, "loss.png", dpi),
+        save_figure(plot_fit(result), out_dir, "fit.png", dpi),
+        save_figure(plot_loss(result), out_dir, "loss.png", dpi),
     ]
 
 
@@ -864,13 +866,13 @@ def save_ensemble_plots(result, out_dir, *, kind: str = "montecarlo", dpi: int =
     out_dir.mkdir(parents=True, exist_ok=True)
     if kind == "montecarlo":
         return [
-            _save(plot_ensemble_histograms(result), out_dir, "histograms.png", dpi),
-            _save(plot_ensemble_scatter(result), out_dir, "scatter.png", dpi),
+            save_figure(plot_ensemble_histograms(result), out_dir, "histograms.png", dpi),
+            save_figure(plot_ensemble_scatter(result), out_dir, "scatter.png", dpi),
         ]
     if kind == "sweep":
-        written = [_save(plot_sweep(result), out_dir, "sweep.png", dpi)]
+        written = [save_figure(plot_sweep(result), out_dir, "sweep.png", dpi)]
         if any(n.startswith("combination_") for n in result.statistics):
-            written.append(_save(plot_sweep_modes(result), out_dir, "sweep_modes.png", dpi))
+            written.append(save_figure(plot_sweep_modes(result), out_dir, "sweep_modes.png", dpi))
         return written
     raise ValueError(f"kind must be 'montecarlo' or 'sweep', got {kind!r}.")
 

@@ -20,7 +20,7 @@ from jaxclear.contact import ContactGeometry, Hybrid, LankaraniNikravesh, Smooth
 from jaxclear.dynamics import _clearance as clearance
 from jaxclear.friction import LuGre, NoFriction
 from jaxclear.mechanisms import slider_crank
-from jaxclear.solve._simulate import assemble
+from jaxclear.solve import assemble
 
 RPM = 5000.0
 OMEGA = RPM * 2 * np.pi / 60

@@ -25,7 +25,7 @@ from jaxclear import cli
 from jaxclear.cli._config import resolve_settings
 from jaxclear.cli._main import build_parser
 from jaxclear.cli._mechanism_config import build_mechanism
-from jaxclear.cli._run import grid, solver_for
+from jaxclear.cli._prepare import grid, solver_for
 from jaxclear.cli._settings import SETTINGS
 from jaxclear.contact import CONTACT_LAWS, Hybrid
 from jaxclear.friction import FRICTION_LAWS, LuGre

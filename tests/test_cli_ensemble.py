@@ -18,12 +18,12 @@ import pytest
 
 import jaxclear.cli._ensemble_common
 from jaxclear import cli
+from jaxclear.analysis import DEFAULT_CONTINUOUS_FRACTION
 from jaxclear.cli._common import NOT_APPLIED
 from jaxclear.cli._config import resolve_settings
 from jaxclear.cli._ensemble_common import DEVICE_COUNT_FLAG, apply_device_count
 from jaxclear.cli._main import build_parser
 from jaxclear.studies import fit_clearance
-from jaxclear.studies._ensemble import DEFAULT_CONTINUOUS_FRACTION
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "montecarlo_h7g6.toml"
 SHORT = [

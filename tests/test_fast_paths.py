@@ -238,7 +238,7 @@ def test_auto_solver_choice():
     )
     assert jaxclear.recommended_solver(coulomb).method == "tsit5"
     with pytest.raises(ValueError, match="solver 'auto' needs the mechanism"):
-        jaxclear.solve._solver.solver_config("auto")
+        jaxclear.solve.solver_config("auto")
 
 
 @pytest.fixture(scope="module")

@@ -34,7 +34,7 @@ def slider_crank(joint: str, **options):
 
 def ideal_joint_force(mechanism, joint: str) -> np.ndarray:
     """Force the journal transmits to the bearing at t = 0 in the ideal mechanism, N."""
-    from jaxclear.solve._startup import ideal_mechanism
+    from jaxclear.solve import ideal_mechanism
 
     traj = jaxclear.simulate(ideal_mechanism(mechanism), 1e-7, num_points=NUM_POINTS, solver="fast")
     return np.asarray(traj.joint_force(joint))[0]

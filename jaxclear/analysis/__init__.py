@@ -6,6 +6,7 @@ from ._energy import drive_work as drive_work
 from ._energy import kinetic_energy as kinetic_energy
 from ._energy import potential_energy as potential_energy
 from ._modes import CONTINUOUS as CONTINUOUS
+from ._modes import DEFAULT_CONTINUOUS_FRACTION as DEFAULT_CONTINUOUS_FRACTION
 from ._modes import FREE as FREE
 from ._modes import IMPACT as IMPACT
 from ._modes import MODE_NAMES as MODE_NAMES

@@ -18,8 +18,10 @@ from typing import Any
 
 import jaxclear
 
+from ..analysis import DEFAULT_CONTINUOUS_FRACTION
+from ..internal import DEFAULT_CHUNK, MANIFEST
 from ..io import package_versions, write_json
-from ..studies._ensemble import DEFAULT_CHUNK, DEFAULT_CONTINUOUS_FRACTION, MANIFEST, EnsembleError
+from ..studies import EnsembleError
 from ._common import (
     NOT_APPLIED,
     PROG,
@@ -32,7 +34,7 @@ from ._common import (
 )
 from ._config import Settings, resolve_settings
 from ._mechanism_config import build_mechanism
-from ._run import grid, kept_start, prepare_output, solver_for
+from ._prepare import grid, kept_start, prepare_output, solver_for
 
 DEVICE_COUNT_FLAG = "--xla_force_host_platform_device_count"
 """XLA flag that exposes the CPU as this many JAX devices, each running its own share of a chunk."""

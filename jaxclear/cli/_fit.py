@@ -12,12 +12,13 @@ import numpy as np
 
 import jaxclear
 
+from ..internal import DEFAULT_HORIZONS, check_identification
 from ..io import CSV_FORMAT, atomic_write, package_versions, write_json
-from ..studies._identify import DEFAULT_HORIZONS, check_identification, identify
+from ..studies import identify
 from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
 from ._config import resolve_settings
 from ._mechanism_config import build_mechanism
-from ._run import grid, prepare_output, solver_for
+from ._prepare import grid, prepare_output, solver_for
 from ._settings import add_setting_arguments, config_reference
 
 DESCRIPTION = """\

@@ -7,7 +7,7 @@ from typing import Any
 
 import jaxclear
 
-from ..studies._distributions import AbstractDistribution, IsoFit, Normal, distribution_from_spec
+from ..studies import AbstractDistribution, IsoFit, Normal, distribution_from_spec
 from ._common import UsageError, one_line
 from ._ensemble_common import (
     DEVICE_COUNT_FLAG,

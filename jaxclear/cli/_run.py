@@ -5,9 +5,7 @@ import contextlib
 import dataclasses
 import io
 import math
-import os
 import sys
-import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -18,6 +16,7 @@ import numpy as np
 
 import jaxclear
 
+from ..internal import EVENTS_PER_REVOLUTION
 from ..io import (
     RUN_FORMAT,
     RUN_JSON_NAME,
@@ -30,9 +29,7 @@ from ..io import (
     write_results,
 )
 from ..mechanisms import is_slider_crank
-from ..solve import finite_rows, window
-from ..solve._startup import ideal_mechanism, wall_start
-from ..studies._ensemble import EVENTS_PER_REVOLUTION
+from ..solve import finite_rows, ideal_mechanism, wall_start, window
 from ._common import (
     PROG,
     RunError,
@@ -43,11 +40,10 @@ from ._common import (
 )
 from ._config import Settings, resolve_settings
 from ._mechanism_config import build_mechanism
+from ._prepare import grid, kept_start, prepare_output, solver_for
 from ._settings import (
     add_setting_arguments,
     config_reference,
-    solver_help,
-    solver_names,
 )
 
 MODES_CSV = "modes.csv"
@@ -134,64 +130,6 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
 
 
 # --- pieces -----------------------------------------------------------------------------------------
-
-
-def solver_for(settings: Settings, mechanism=None):
-    """The run's ``SolverConfig``; ``auto`` is decided from ``mechanism`` (``recommended_solver``)."""
-    from ..solve._solver import solver_config
-
-    section = settings.config["solver"]
-    name = section["method"]
-    if name not in solver_names():
-        raise UsageError(
-            f"{settings.source('solver', 'method')}: solver {name!r} is unknown; choose {solver_help()}"
-        )
-    if name == "auto":
-        name = jaxclear.recommended_solver(mechanism).method if mechanism is not None else "fast"
-    solver = solver_config(name)
-    changes = {k: section[k] for k in ("rtol", "atol", "max_steps") if section[k] is not None}
-    changes = {k: float(v) if k != "max_steps" else v for k, v in changes.items()}
-    return solver.replace(**changes) if changes else solver
-
-
-def grid(settings: Settings) -> tuple[float, int]:
-    """(end time in s, number of saved instants)."""
-    rpm = settings.config["mechanism"]["rpm"]
-    revolutions = settings.config["simulation"]["revolutions"]
-    intervals = max(1, round(revolutions * settings.config["simulation"]["points_per_revolution"]))
-    return 60.0 * revolutions / rpm, intervals + 1
-
-
-def kept_start(settings: Settings) -> float:
-    """Start of the kept window (after ``skip_revolutions``), s."""
-    return (
-        60.0
-        * settings.config["simulation"]["skip_revolutions"]
-        / settings.config["mechanism"]["rpm"]
-    )
-
-
-def prepare_output(settings: Settings) -> Path:
-    """Create the output folder and prove it writable (a temporary file), before any solve.
-
-    Raises:
-        UsageError: the path is a file, or the folder cannot be created or written.
-    """
-    text = settings.config["output"]["directory"]
-    source = settings.source("output", "directory")
-    out_dir = Path(text)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"{source} {text!r} exists and is not a folder; choose another path")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(prefix=".jaxclear-write-test.", dir=out_dir)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        raise UsageError(
-            f"{source} {text!r} is not writable ({e.strerror or e}); choose a folder you can write to"
-        ) from None
-    return out_dir
 
 
 def _block(traj):
@@ -462,7 +400,7 @@ def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) ->
 def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> int:
     """A failed solve: the finite instants reached are written, no plots, run.json says why; exit 1."""
     # the message simulate(throw=True) would raise, for a trajectory that is kept
-    from ..solve._simulate import failure_error
+    from ..solve import failure_error
 
     failure = failure_error(traj, solver)
     reached = finite_rows(traj.truncated())

@@ -21,7 +21,7 @@ from typing import Any
 from .. import mechanisms as _mechanisms
 from ..contact import CONTACT_LAWS
 from ..friction import FRICTION_LAWS
-from ..solve._solver import METHODS, PRESETS
+from ..solve import METHODS, PRESETS
 from ._common import UsageError
 
 MECHANISMS = ("slider_crank", "four_bar", "custom")

@@ -6,8 +6,7 @@ import numpy as np
 
 import jaxclear
 
-from ..studies._ensemble import EnsembleError
-from ..studies._montecarlo import sweep_values
+from ..studies import EnsembleError, sweep_values
 from ._common import UsageError, one_line
 from ._ensemble_common import add_ensemble_arguments, base_info, finish, prepare, run_engine
 from ._settings import add_setting_arguments, config_reference

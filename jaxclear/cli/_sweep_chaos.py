@@ -141,9 +141,11 @@ def run_stages(
             distinct[n] = {"tolerance": tolerance,
                            "counts": distinct_points(diagram.points[n], tolerance).tolist()}  # fmt: skip
         if plots:
-            from ..plot import _save, plot_bifurcation
+            from ..plot import plot_bifurcation, save_figure
 
-            files.append(_save(plot_bifurcation(diagram), out_dir, "bifurcation.png", 110).name)
+            files.append(
+                save_figure(plot_bifurcation(diagram), out_dir, "bifurcation.png", 110).name
+            )
         info["bifurcation"] = {
             "revolutions": args.sections,
             "skip_revolutions": skip,
@@ -192,9 +194,9 @@ def run_stages(
                   "exponent_per_revolution", "succeeded"]  # fmt: skip
         files = [_write_rows(out_dir / LYAPUNOV_CSV, header, rows).name]
         if plots:
-            from ..plot import _save, plot_lyapunov_sweep
+            from ..plot import plot_lyapunov_sweep, save_figure
 
-            files.append(_save(plot_lyapunov_sweep(sweep), out_dir, "lyapunov.png", 110).name)
+            files.append(save_figure(plot_lyapunov_sweep(sweep), out_dir, "lyapunov.png", 110).name)
         info["lyapunov"] = {
             "revolutions": args.lyapunov,
             "skip_revolutions": skip,

@@ -42,9 +42,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._core._errors import EnsembleError, InputCheck
 from .._core._progress import progress_bar
 from ..analysis._modes import (
     CONTINUOUS,
+    DEFAULT_CONTINUOUS_FRACTION,
     FREE,
     IMPACT,
     MODE_NAMES,
@@ -60,13 +62,9 @@ from ..model import Mechanism, parameter_info, parameter_names, with_parameters
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
 from ..solve._startup import ideal_mechanism
-from ..solve._trajectory import INPUT_ERRORS
 
 DEFAULT_CHUNK = 64
 """Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
-DEFAULT_CONTINUOUS_FRACTION = 0.02
-"""Contact lasting at least this fraction of the crank period is continuous contact, shorter contact
-an impact (the literature's rule, Ma & Qian 2017)."""
 MANIFEST = "ensemble.json"
 OK, FAILED = "ok", "failed"
 NON_NEGATIVE = frozenset({"friction_coefficient", "viscous_friction", "damping", "free_length"})
@@ -401,10 +399,6 @@ def _read_table(path: Path, names: Sequence[str]) -> list[dict[str, str]]:
     return rows
 
 
-class EnsembleError(ValueError):
-    """An ensemble cannot start: bad arguments, or an output folder holding another configuration."""
-
-
 # --- the engine ------------------------------------------------------------------------------------
 
 
@@ -716,7 +710,7 @@ def _record(result, i, row, stats, contacts, outcome, ts, start, period, fractio
     res = int(outcome["result"][row])
     result.num_steps[i] = int(outcome["num_steps"][row])
     if code:
-        result.messages[i] = INPUT_ERRORS.get(code, f"input check {code} failed")
+        result.messages[i] = InputCheck(code).message
         return
     if not bool(outcome["succeeded"][row]):
         result.messages[i] = _result_message(res, float(outcome["t_final"][row]))

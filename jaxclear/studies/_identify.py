@@ -49,7 +49,7 @@ from ..analysis._signals import signal_names, signals
 from ..io._measurements import Measurements
 from ..model import Mechanism, with_parameters
 from ..solve._simulate import simulate
-from ..solve._solver import SolverConfig, solver_config
+from ..solve._solver import SolverConfig, gradient_solver, solver_config
 from ._ensemble import map_members
 from ._parameter_space import FitParameter, ParameterSpace, parse_parameters, scan_values
 
@@ -291,7 +291,7 @@ def identify(
     specs, t_end, horizons = check_identification(mechanism, data, parameters, t0, t1, horizons)
     names = tuple(data.signals)
     t_data = np.asarray(data.t, dtype=float)
-    config = _gradient_solver(mechanism) if solver is None else solver_config(solver, mechanism)
+    config = gradient_solver(mechanism) if solver is None else solver_config(solver, mechanism)
     p = len(specs)
     count = DEFAULT_SCAN_POINTS * p if scan_points is None else int(scan_points)
 
@@ -532,9 +532,3 @@ def _levenberg_marquardt(evaluate, u, count, max_iterations, tolerance, report):
         f"stopped after {max_iterations} iterations (max_iterations)",
         loss,
     )
-
-
-def _gradient_solver(mechanism):
-    from ..solve import _solver
-
-    return _solver.gradient_solver(mechanism)

@@ -44,7 +44,7 @@ from ..analysis._signals import signal_names, signals
 from ..analysis._statistics import statistics
 from ..model import Mechanism, with_parameters
 from ..solve._simulate import simulate
-from ..solve._solver import SolverConfig, recommended_solver, solver_config
+from ..solve._solver import SolverConfig, gradient_solver, recommended_solver, solver_config
 from ..solve._startup import ideal_mechanism
 from ._parameter_space import FitParameter, ParameterSpace, parse_parameters
 
@@ -274,7 +274,7 @@ def optimize(
     if starts < 1:
         raise ModelError(f"starts must be at least 1, got {starts}.")
     specs = tuple(parse_parameters(mechanism, parameters))
-    config = _gradient_solver(mechanism) if solver is None else solver_config(solver, mechanism)
+    config = gradient_solver(mechanism) if solver is None else solver_config(solver, mechanism)
     if verify_solver is None:
         rtol = min(VERIFY_RTOL, config.rtol)
         verify = recommended_solver(mechanism).replace(
@@ -335,9 +335,3 @@ def optimize(
 
 def _values(specs, u) -> dict[str, float]:
     return {q.name: float(q.from_unconstrained(u[i])) for i, q in enumerate(specs)}
-
-
-def _gradient_solver(mechanism):
-    from ..solve import _solver
-
-    return _solver.gradient_solver(mechanism)

@@ -1,0 +1,12 @@
+"""Names the command line shares with the library that are not part of the user API.
+
+``jaxclear.cli`` enters the library through public names (``jaxclear``, ``jaxclear.solve``,
+``jaxclear.studies``, ``jaxclear.io``, ``jaxclear.plot``, ...) and through this module only, as
+``equinox.internal`` serves equinox's own extensions. These names may change without notice.
+"""
+
+from .studies._ensemble import DEFAULT_CHUNK as DEFAULT_CHUNK
+from .studies._ensemble import EVENTS_PER_REVOLUTION as EVENTS_PER_REVOLUTION
+from .studies._ensemble import MANIFEST as MANIFEST
+from .studies._identify import DEFAULT_HORIZONS as DEFAULT_HORIZONS
+from .studies._identify import check_identification as check_identification
