@@ -20,13 +20,13 @@ import numpy as np
 import pytest
 
 import jaxclear
-import jaxclear.cli._run
+import jaxclear.cli._prepare
 from jaxclear import cli
 from jaxclear.cli._config import resolve_settings
 from jaxclear.cli._main import build_parser
 from jaxclear.cli._mechanism_config import build_mechanism
 from jaxclear.cli._prepare import grid, solver_for
-from jaxclear.cli._settings import SETTINGS
+from jaxclear.cli._setting_table import SETTINGS
 from jaxclear.contact import CONTACT_LAWS, Hybrid
 from jaxclear.friction import FRICTION_LAWS, LuGre
 
@@ -599,7 +599,7 @@ def test_read_only_output_folder(tmp_path, capsys, monkeypatch):
     def no_solve(*args, **kwargs):
         raise AssertionError("simulate was called before the output folder was checked")
 
-    monkeypatch.setattr(jaxclear.cli._run.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(jaxclear.cli._prepare.tempfile, "mkstemp", refuse)
     monkeypatch.setattr(jaxclear, "simulate", no_solve)
     out = tmp_path / "out"
     assert_usage_error(

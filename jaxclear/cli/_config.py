@@ -11,11 +11,11 @@ from pathlib import Path
 from typing import Any
 
 from ._common import UsageError
+from ._setting_table import SETTINGS
 from ._settings import (
     BY_LABEL,
     PER_JOINT,
     SECTIONS,
-    SETTINGS,
     check_value,
     type_name,
     type_ok,

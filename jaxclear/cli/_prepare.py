@@ -8,7 +8,7 @@ from pathlib import Path
 from ..solve import recommended_solver, solver_config
 from ._common import UsageError
 from ._config import Settings
-from ._settings import solver_help, solver_names
+from ._setting_table import solver_help, solver_names
 
 
 def solver_for(settings: Settings, mechanism=None):
