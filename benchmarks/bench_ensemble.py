@@ -70,11 +70,12 @@ def worker(a):
     t1 = a.revolutions * period
     start = period
     points = int(round(a.revolutions * 360)) + 1
-    options = dict(statistics_start=start, num_points=points, solver=a.solver, progress=False)
+    options = dict(statistics_start=start, num_points=points, solver=a.solver)
     out = {"devices": len(jax.local_devices()), "chunks": []}
     if a.montecarlo:
+        quiet = jaxclear.EnsembleSettings(progress=False)
         t = time.perf_counter()
-        r = jaxclear.run_ensemble(mech, _values(mech, a.montecarlo), t1, **options)
+        r = jaxclear.run_ensemble(mech, _values(mech, a.montecarlo), t1, settings=quiet, **options)
         out["montecarlo"] = {
             "members": a.montecarlo,
             "wall_s": time.perf_counter() - t,
@@ -100,13 +101,13 @@ def worker(a):
     out["serial_s_per_member"] = (time.perf_counter() - t) / a.serial
     for chunk in a.chunks:
         n = max(chunk, -(-a.members // chunk) * chunk)
+        warm = jaxclear.EnsembleSettings(chunk_size=chunk, progress=False)
         t = time.perf_counter()
-        jaxclear.run_ensemble(mech, _values(mech, chunk), t1, chunk_size=chunk, **options)
+        jaxclear.run_ensemble(mech, _values(mech, chunk), t1, settings=warm, **options)
         first = time.perf_counter() - t
+        settings = jaxclear.EnsembleSettings(chunk_size=chunk, order=a.order, progress=False)
         t = time.perf_counter()
-        r = jaxclear.run_ensemble(
-            mech, _values(mech, n), t1, chunk_size=chunk, order=a.order, **options
-        )
+        r = jaxclear.run_ensemble(mech, _values(mech, n), t1, settings=settings, **options)
         run = time.perf_counter() - t
         steps = r.num_steps[r.succeeded]
         out["chunks"].append(

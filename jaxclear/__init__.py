@@ -51,6 +51,7 @@ from .solve._solver import recommended_solver as recommended_solver  # noqa: E40
 from .solve._startup import ideal_mechanism as ideal_mechanism  # noqa: E402
 from .solve._startup import wall_start as wall_start  # noqa: E402
 from .solve._trajectory import Trajectory as Trajectory  # noqa: E402
+from .studies import EnsembleSettings as EnsembleSettings  # noqa: E402
 from .studies import FitParameter as FitParameter  # noqa: E402
 from .studies import identify as identify  # noqa: E402
 from .studies import montecarlo as montecarlo  # noqa: E402

@@ -8,12 +8,14 @@ at the first impacts, and over revolutions the (chaotic) runs drift apart while 
 agree only as distributions.
 """
 
+import dataclasses
 import json
 import os
 import subprocess
 import sys
 import textwrap
 
+import jax
 import numpy as np
 import pytest
 
@@ -21,7 +23,7 @@ import jaxclear
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import ModifiedCoulomb
 from jaxclear.mechanisms import slider_crank
-from jaxclear.studies import EnsembleError, draw, fit_clearance
+from jaxclear.studies import EnsembleError, EnsembleSettings, draw, fit_clearance
 
 CHUNK = 4
 POINTS = 61
@@ -43,6 +45,7 @@ SHARE = 1e-6
 the solver's samples, which the two solves place slightly differently."""
 ROUNDOFF = {"max_constraint_violation"}
 """Statistics at round-off level (1e-15 m): compared with an absolute tolerance instead."""
+SETTINGS = EnsembleSettings(chunk_size=CHUNK, progress=False)
 
 VALUES = {
     "B.clearance": np.array([4e-4, 5e-4, 6e-4, -1e-4, 5e-4, np.nan]),
@@ -63,9 +66,7 @@ def mechanism():
 
 
 def _run(mechanism, values, **kw):
-    options = dict(
-        statistics_start=START, num_points=POINTS, solver=TIGHT, chunk_size=CHUNK, progress=False
-    )
+    options = dict(statistics_start=START, num_points=POINTS, solver=TIGHT, settings=SETTINGS)
     options.update(kw)
     return jaxclear.run_ensemble(mechanism, values, T1, **options)
 
@@ -136,6 +137,7 @@ def test_failed_members_are_recorded_and_kept_out(ensemble):
 
 def test_killed_run_resumes_without_redoing_members(mechanism, ensemble, tmp_path):
     values = {k: np.concatenate([v[:3], v[:3][::-1], v[1:3]]) for k, v in VALUES.items()}
+    settings = dataclasses.replace(SETTINGS, out=tmp_path, order="index")
     chunks = []
 
     def stop_after_first_chunk(result, finished):
@@ -143,11 +145,11 @@ def test_killed_run_resumes_without_redoing_members(mechanism, ensemble, tmp_pat
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        _run(mechanism, values, out=tmp_path, order="index", callback=stop_after_first_chunk)
+        _run(mechanism, values, settings=settings, callback=stop_after_first_chunk)
     with open(tmp_path / "members.csv", encoding="utf-8") as fh:
         assert len(fh.read().strip().splitlines()) == 1 + CHUNK  # header and the first chunk
     chunks = _Counter()
-    resumed = _run(mechanism, values, out=tmp_path, order="index", callback=chunks.append_count)
+    resumed = _run(mechanism, values, settings=settings, callback=chunks.append_count)
     assert chunks == [len(values["rpm"])]  # one more chunk: the rest only
     np.testing.assert_array_equal(resumed.values, np.stack(list(values.values()), axis=1))
     assert np.all(resumed.succeeded)
@@ -166,9 +168,10 @@ class _Counter(list):
 
 def test_changed_configuration_is_refused(mechanism, tmp_path):
     values = {k: v[:2] for k, v in VALUES.items()}
-    _run(mechanism, values, out=tmp_path, description={"seed": 1})
+    settings = dataclasses.replace(SETTINGS, out=tmp_path)
+    _run(mechanism, values, settings=settings, description={"seed": 1})
     with pytest.raises(EnsembleError, match=r"another configuration \(changed: description\.seed"):
-        _run(mechanism, values, out=tmp_path, description={"seed": 2})
+        _run(mechanism, values, settings=settings, description={"seed": 2})
     manifest = json.loads((tmp_path / "ensemble.json").read_text())
     assert manifest["finished"] == 2
 
@@ -182,6 +185,20 @@ def test_bad_arguments_name_the_fix(mechanism):
         jaxclear.run_ensemble(mechanism, {"rpm": [1.0]}, T1, statistics_start=T1)
     with pytest.raises(EnsembleError, match="deviation signal 'slider_q'"):
         jaxclear.run_ensemble(mechanism, {"rpm": [1.0]}, T1, deviation=["slider_q"])
+
+
+def test_bad_settings_name_the_field_and_fix():
+    with pytest.raises(EnsembleError, match="chunk_size must be a positive integer"):
+        EnsembleSettings(chunk_size=0)
+    with pytest.raises(EnsembleError, match="order must be 'cost' or 'index'"):
+        EnsembleSettings(order="size")
+    with pytest.raises(EnsembleError, match="devices must be a sequence of JAX devices"):
+        EnsembleSettings(devices=jax.local_devices()[0])
+    with pytest.raises(EnsembleError, match="devices is empty"):
+        EnsembleSettings(devices=[])
+    with pytest.raises(EnsembleError, match="table_name must be a file name"):
+        EnsembleSettings(table_name="tables/members.csv")
+    assert EnsembleSettings(chunk_size=4.0, out="folder").chunk_size == 4  # whole numbers pass
 
 
 def test_draws_are_reproducible_and_independent_per_name():
@@ -215,9 +232,9 @@ SHARDED = textwrap.dedent(
     args = json.loads(sys.argv[1])
     solver = jaxclear.SolverConfig(**args["solver"])
     values = {k: np.asarray(v) for k, v in args["values"].items()}
+    settings = jaxclear.EnsembleSettings(chunk_size=args["chunk"], progress=False)
     r = jaxclear.run_ensemble(m, values, args["t1"], statistics_start=args["start"],
-                              num_points=args["points"], solver=solver,
-                              chunk_size=args["chunk"], progress=False)
+                              num_points=args["points"], solver=solver, settings=settings)
     print(json.dumps({"devices": len(jax.devices()),
                       "force": r.statistics["B_peak_normal_force"].tolist(),
                       "steps": r.num_steps.tolist()}))
@@ -268,7 +285,12 @@ def test_modes_use_each_members_crank_period(mechanism):
     durations = jaxclear.analysis.contact_events(single)["B"]["duration"]
     fraction = 1.1 * float(np.max(durations)) / own  # between duration/own and duration/nominal
     assert fraction * nominal <= np.max(durations) < fraction * own
-    result = _run(mechanism, values, continuous_fraction=fraction, order="index")
+    result = _run(
+        mechanism,
+        values,
+        continuous_fraction=fraction,
+        settings=dataclasses.replace(SETTINGS, order="index"),
+    )
     shares = jaxclear.analysis.event_mode_shares(single, continuous_fraction=fraction)
     assert shares["joints"]["B"]["continuous_contacts"] == 0
     assert result.statistics["B_continuous_contacts"][1] == 0

@@ -61,7 +61,13 @@ def test_bifurcation_points_equal_single_sections(ideal):
     value's points sit at its own quarter revolution (slider speed −r ω(rpm))."""
     rpms = np.array([3000.0, 4000.0, 6000.0])
     diagram = bifurcation_points(
-        ideal, "rpm", rpms, 4, phase=np.pi / 2, signals=["slider_v"], chunk_size=4
+        ideal,
+        "rpm",
+        rpms,
+        4,
+        phase=np.pi / 2,
+        signals=["slider_v"],
+        settings=jaxclear.EnsembleSettings(chunk_size=4),
     )
     assert diagram.points["slider_v"].shape == (3, 4)
     assert diagram.succeeded.all()

@@ -21,7 +21,7 @@ import jaxclear
 from ..analysis import DEFAULT_CONTINUOUS_FRACTION
 from ..internal import DEFAULT_CHUNK, MANIFEST
 from ..io import package_versions, write_json
-from ..studies import EnsembleError
+from ..studies import EnsembleError, EnsembleSettings
 from ._common import (
     NOT_APPLIED,
     PROG,
@@ -194,8 +194,9 @@ class Outcome:
     Attributes:
         result: the ``EnsembleResult``.
         out_dir: the output folder.
-        devices: the devices the chunks were spread over.
-        chunk_size: members per vectorised solve, as used (a multiple of the devices).
+        settings: the engine's settings as run: ``chunk_size`` (members per vectorised solve, a
+            multiple of the devices), ``devices`` (the devices the chunks were spread over),
+            ``out``, ``table_name``, ``progress``.
         already_finished: members found finished in ``out_dir`` (resumed), 0 for a fresh run.
         run_now: the other members, handed to the solver by this call (or recorded as failed
             without a solve when their drawn values are inadmissible).
@@ -204,8 +205,7 @@ class Outcome:
 
     result: Any
     out_dir: Path
-    devices: list
-    chunk_size: int
+    settings: EnsembleSettings
     already_finished: int
     run_now: int
     wall_time_s: float
@@ -229,7 +229,8 @@ def run_engine(
     table_name: str,
     say: Callable[..., None],
 ) -> Outcome:
-    """Make the output folder and run ``call(**engine options)`` (``montecarlo`` or ``sweep``).
+    """Make the output folder and run ``call(**engine options)`` (``montecarlo`` or ``sweep``),
+    ``settings=`` an ``EnsembleSettings`` among them.
 
     The chunk is ``--chunk-size``, or ``members`` when there are fewer (the engine pads a chunk
     with nominal members), rounded up to a multiple of the devices.
@@ -251,6 +252,9 @@ def run_engine(
         )
     quiet = args.quiet
     progress = not (quiet or args.no_progress) and sys.stderr.isatty()
+    engine = EnsembleSettings(
+        chunk_size=chunk, devices=devices, out=out_dir, table_name=table_name, progress=progress
+    )
     say(
         f"{len(devices)} {devices[0].platform.upper()} device{'s' if per > 1 else ''}, "
         f"chunks of {chunk} members; compiling (one-off) and solving ...",
@@ -264,11 +268,7 @@ def run_engine(
             num_points=prepared.num_points,
             solver=prepared.solver,
             continuous_fraction=prepared.continuous_fraction,
-            chunk_size=chunk,
-            devices=devices,
-            out=out_dir,
-            table_name=table_name,
-            progress=progress,
+            settings=engine,
         )
     except EnsembleError as e:
         raise UsageError(one_line(e)) from None
@@ -283,8 +283,7 @@ def run_engine(
     return Outcome(
         result=result,
         out_dir=out_dir,
-        devices=devices,
-        chunk_size=chunk,
+        settings=engine,
         already_finished=previous,
         run_now=len(result) - previous,
         wall_time_s=wall,
@@ -297,6 +296,8 @@ def base_info(prepared: Prepared, outcome: Outcome, argv: list[str], fmt: int) -
 
     settings = prepared.settings
     solver = prepared.solver
+    devices = outcome.settings.devices
+    assert devices is not None  # run_engine names them
     return {
         "format": fmt,
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
@@ -313,13 +314,13 @@ def base_info(prepared: Prepared, outcome: Outcome, argv: list[str], fmt: int) -
         "kept_window_s": [prepared.statistics_start, prepared.t1],
         "solver": {f.name: getattr(solver, f.name) for f in dataclasses.fields(solver)},
         "continuous_fraction": prepared.continuous_fraction,
-        "devices": len(outcome.devices),
-        "device_kind": outcome.devices[0].device_kind,
+        "devices": len(devices),
+        "device_kind": devices[0].device_kind,
         "jax_backend": jax.default_backend(),
         "device_flag": prepared.device_flag,
         "fast_compile": prepared.fast_compile,
         "compilation_cache": prepared.compilation_cache,
-        "chunk_size": outcome.chunk_size,
+        "chunk_size": outcome.settings.chunk_size,
         "already_finished": outcome.already_finished,
         "run_now": outcome.run_now,
         "wall_time_s": outcome.wall_time_s,

@@ -107,7 +107,6 @@ def run_stages(
     out_dir = outcome.out_dir
     mechanism = prepared.mechanism
     skip = math.ceil(prepared.statistics_start / period - 1e-9)
-    common = dict(chunk_size=outcome.chunk_size, devices=outcome.devices)
     if args.sections:
         say(
             f"bifurcation diagram: {args.sections} revolutions per value after {skip} ...",
@@ -121,7 +120,7 @@ def run_stages(
                 args.sections,
                 skip_revolutions=skip,
                 solver=prepared.solver,
-                **common,
+                settings=outcome.settings,
             )
         except (ValueError, RuntimeError) as e:
             raise _failed_stage("bifurcation", out_dir, e) from None
@@ -181,7 +180,7 @@ def run_stages(
                 interval=period,
                 transient=skip * period,
                 solver=config,
-                **common,
+                settings=outcome.settings,
             )
         except (ValueError, RuntimeError) as e:
             raise _failed_stage("Lyapunov", out_dir, e) from None

@@ -2,6 +2,7 @@
 ensemble run, Monte Carlo over tolerances (distributions, ISO 286 fits), sweeps, Poincaré sections
 and bifurcation diagrams, Lyapunov exponents, identification and design optimisation."""
 
+from .._core._errors import EnsembleError as EnsembleError
 from ._distributions import AbstractDistribution as AbstractDistribution
 from ._distributions import Fixed as Fixed
 from ._distributions import IsoFit as IsoFit
@@ -9,9 +10,9 @@ from ._distributions import LogNormal as LogNormal
 from ._distributions import Normal as Normal
 from ._distributions import Uniform as Uniform
 from ._distributions import distribution_from_spec as distribution_from_spec
-from ._ensemble import EnsembleError as EnsembleError
-from ._ensemble import EnsembleResult as EnsembleResult
+from ._engine import EnsembleSettings as EnsembleSettings
 from ._ensemble import run_ensemble as run_ensemble
+from ._ensemble_result import EnsembleResult as EnsembleResult
 from ._identify import Estimate as Estimate
 from ._identify import IdentificationResult as IdentificationResult
 from ._identify import identify as identify

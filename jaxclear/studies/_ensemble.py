@@ -1,4 +1,4 @@
-"""The ensemble engine: many members of one mechanism topology, solved in vectorised chunks.
+"""The file-backed ensemble run: many members of one mechanism topology, each solved and summed up.
 
 Monte Carlo over tolerances (``montecarlo``), parameter sweeps (``sweep``) and the commands built on
 them run through ``run_ensemble``. A member is the mechanism with some named parameters
@@ -8,37 +8,27 @@ mechanism, per-joint contact-mode shares and counts and the shares of the 3ⁿ c
 contacts located from the solver's steps), the solver's step count and its share of the chunk's
 wall time.
 
-How it runs:
-- members are solved ``chunk_size`` at a time by one compiled, vmapped solve (one compilation per
-  chunk size, topology and settings); memory grows with the chunk;
-- with several local devices (``jax.local_devices()``: GPUs, or CPU cores exposed by
-  ``XLA_FLAGS=--xla_force_host_platform_device_count=N``) each chunk is split over the devices:
-  every device solves its own share as its own computation, launched from its own thread;
-- a vmapped solve steps all its members until the slowest finishes (lockstep), so members are
-  ordered by expected cost before they are chunked (``order="cost"``: the step counts of the
-  members solved so far, regressed on the drawn values; see ``_cost_order``);
+How it runs (``EnsembleSettings``):
+- members are solved in vectorised chunks, split over the local devices, by the engine
+  (``map_members``, ``jaxclear.studies._engine``);
+- members are ordered by expected cost before they are chunked (``order="cost"``: the step counts
+  of the members solved so far, regressed on the drawn values; see ``cost_order``);
 - with ``out`` given, finished members are written after every chunk (atomic replace of the CSV
-  and of a JSON manifest); called again with the same arguments it resumes, solving only the
-  members not yet on disk, and refuses a changed configuration;
+  and of a JSON manifest, ``jaxclear.studies._ensemble_result``); called again with the same
+  arguments it resumes, solving only the members not yet on disk, and refuses a changed
+  configuration;
 - a member whose solve fails, or whose drawn values are not admissible, is recorded with its
   message, its statistics are NaN, and the others go on.
 """
 
-import collections
-import concurrent.futures
-import csv
 import dataclasses
-import hashlib
-import json
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import diffrax
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -57,16 +47,13 @@ from ..analysis._modes import (
 )
 from ..analysis._signals import signal_names, signals
 from ..analysis._statistics import statistics
-from ..io import atomic_write, write_json
-from ..model import Mechanism, parameter_info, parameter_names, with_parameters
+from ..model import Mechanism, get_parameter, parameter_info, with_parameters
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
 from ..solve._startup import ideal_mechanism
+from ._engine import EnsembleSettings, chunk_rows, cost_order, map_members
+from ._ensemble_result import FAILED, OK, EnsembleResult, mechanism_values, resume, save
 
-DEFAULT_CHUNK = 64
-"""Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
-MANIFEST = "ensemble.json"
-OK, FAILED = "ok", "failed"
 NON_NEGATIVE = frozenset({"friction_coefficient", "viscous_friction", "damping", "free_length"})
 """Fields whose admissible range includes its lower bound 0 (``ParameterInfo.domain`` is open)."""
 FORMAT = 2  # 2: contact modes from located events, counts and combination shares
@@ -76,91 +63,7 @@ and in ``jaxclear run``: the default run has 3–7 contacts per joint and revolu
 buffer overflows, the modes come from the saved grid (``grid_contacts``)."""
 
 
-@dataclasses.dataclass
-class EnsembleResult:
-    """Per-member results of ``run_ensemble``, in member order.
-
-    Attributes:
-        names: the drawn parameters' names (``B.clearance``, ``rod_mass``, ...).
-        values: (N, len(names)) drawn values, SI units.
-        statistics: {name: (N,) values}, NaN where the member failed. Names: those of
-            ``jaxclear.analysis.statistics`` (``B_peak_normal_force``, ``crank_torque_rms``, ...),
-            ``<signal>_deviation`` (RMS deviation from the ideal mechanism over the statistics
-            window), ``torque_fluctuation`` (RMS of the input torque about its mean), and the
-            contact modes over the statistics window from the contacts located from the solver's
-            steps (``mode_statistic_names``: per joint ``<J>_free_share``, ``<J>_impact_share``,
-            ``<J>_continuous_share``, ``<J>_impacts``, ``<J>_continuous_contacts``; per
-            combination ``combination_C-I-F_share`` and so on).
-        status: (N,) ``"ok"`` or ``"failed"``.
-        messages: (N,) why a member failed (``""`` if it did not).
-        num_steps: (N,) solver steps (0 for members not solved).
-        wall_time_s: (N,) the wall time of the member's chunk divided by its members.
-    """
-
-    names: tuple[str, ...]
-    values: np.ndarray
-    statistics: dict[str, np.ndarray]
-    status: np.ndarray
-    messages: list[str]
-    num_steps: np.ndarray
-    wall_time_s: np.ndarray
-
-    @property
-    def succeeded(self) -> np.ndarray:
-        return self.status == OK
-
-    def __len__(self) -> int:
-        return len(self.status)
-
-    def rows(self) -> list[dict[str, Any]]:
-        """One dict per member: ``index``, drawn values, statistics, steps, time, status, message."""
-        rows = []
-        for i in range(len(self)):
-            row: dict[str, Any] = {"index": i}
-            row.update({n: float(self.values[i, k]) for k, n in enumerate(self.names)})
-            row.update({k: float(v[i]) for k, v in self.statistics.items()})
-            row.update(
-                num_steps=int(self.num_steps[i]),
-                wall_time_s=float(self.wall_time_s[i]),
-                status=str(self.status[i]),
-                message=self.messages[i],
-            )
-            rows.append(row)
-        return rows
-
-    def summary(self) -> dict[str, Any]:
-        """Over the members that succeeded: percentiles 5/50/95, mean and its standard error, min,
-        max of each statistic; counts and the failures' messages."""
-        ok = self.succeeded
-        out: dict[str, Any] = {
-            "members": len(self),
-            "succeeded": int(ok.sum()),
-            "failed": int((~ok).sum()),
-            "failures": [
-                {"index": int(i), "message": self.messages[i]} for i in np.flatnonzero(~ok)
-            ],
-            "statistics": {},
-        }
-        for name, v in self.statistics.items():
-            x = v[ok]
-            x = x[np.isfinite(x)]
-            if x.size == 0:
-                continue
-            p5, p50, p95 = np.percentile(x, [5, 50, 95])
-            out["statistics"][name] = {
-                "mean": float(x.mean()),
-                "standard_error": float(x.std(ddof=1) / math.sqrt(x.size)) if x.size > 1 else None,
-                "p5": float(p5),
-                "p50": float(p50),
-                "p95": float(p95),
-                "min": float(x.min()),
-                "max": float(x.max()),
-                "count": int(x.size),
-            }
-        return out
-
-
-# --- the compiled chunk ---------------------------------------------------------------------------
+# --- one member ------------------------------------------------------------------------------------
 
 
 def _window_rms(t, x, start):
@@ -229,177 +132,7 @@ def _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0
     return stats, contacts, outcome
 
 
-@eqx.filter_jit
-def _vmap_chunk(fn, args, values):
-    """``fn(v, *args)`` for every row ``v`` of ``values``, vmapped."""
-    return jax.vmap(lambda v: fn(v, *args))(values)
-
-
-def chunk_size_for(chunk_size: int, devices) -> int:
-    """``chunk_size`` rounded up to a multiple of the number of devices."""
-    per = len(devices) if devices else 1
-    return -(-int(chunk_size) // per) * per
-
-
-def swept_values(mechanism: Mechanism, name: str, values) -> np.ndarray:
-    """Check a one-parameter sweep's arguments (``bifurcation_points``, ``lyapunov_sweep``): a
-    known parameter name and a non-empty 1-D array of finite values, returned as floats.
-
-    Raises:
-        ValueError: naming the parameter and what is allowed.
-    """
-    known = parameter_names(mechanism)
-    if name not in known:
-        raise ValueError(
-            f"name {name!r} is not a parameter of this mechanism; choose among {known}."
-        )
-    values = np.asarray(values, dtype=float)
-    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
-        raise ValueError(f"values must be a non-empty 1-D array of finite numbers, got {values!r}.")
-    return values
-
-
-def map_members(
-    fn: Callable[..., Any],
-    args: tuple,
-    values,
-    *,
-    chunk_size: int = DEFAULT_CHUNK,
-    devices: Sequence[Any] | None = None,
-    on_chunk: Callable[[int, int], Any] | None = None,
-):
-    """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
-
-    The engine's core, shared by ``run_ensemble`` and identification's global scan: chunks of
-    ``chunk_size`` rows (the last one padded by repeating its last row, so that every chunk has
-    one shape and one compilation), each one vmapped and split over the local devices.
-
-    Args:
-        fn: a module-level function ``fn(v, *args)`` of one member's row ``v`` (a JAX function:
-            it is traced once per chunk shape).
-        args: the other arguments (pytrees; arrays are traced, the rest static).
-        values: (N, p) rows.
-        chunk_size: rows per vectorised call (rounded up to a multiple of the devices).
-        devices: devices to split each chunk over (default all local devices).
-        on_chunk: ``on_chunk(start, stop)`` after rows ``start:stop`` are done.
-
-    Returns:
-        ``fn``'s outputs as NumPy arrays with a leading axis of N.
-    """
-    values = np.asarray(values, dtype=float)
-    devs = _devices(devices)
-    chunk = chunk_size_for(chunk_size, devs)
-    per = chunk // len(devs) if devs else chunk
-    outputs = []
-    pending = collections.deque()
-
-    def collect():
-        start, count, parts = pending.popleft()
-        got = [jax.device_get(p) for p in parts]
-        out = jax.tree_util.tree_map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *got)
-        outputs.append(jax.tree_util.tree_map(lambda x: x[:count], out))
-        if on_chunk is not None:
-            on_chunk(start, start + count)
-
-    for start in range(0, len(values), chunk):
-        part = values[start : start + chunk]
-        padded = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
-        if devs is None:
-            parts = [_vmap_chunk(fn, args, jnp.asarray(padded))]
-        else:
-            # each device solves its own share as an independent computation, launched from its
-            # own thread (JAX releases the GIL while XLA runs): the devices run at once. (A
-            # shard_map over the devices hung for good in some configurations: 12 members
-            # drawing rod_mass with the ideal-joint deviation on two CPU devices.)
-            shares = [padded[k * per : (k + 1) * per] for k in range(len(devs))]
-
-            def run(k, shares=shares):
-                out = _vmap_chunk(fn, args, jax.device_put(shares[k], devs[k]))
-                return jax.block_until_ready(out)
-
-            with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:
-                parts = list(pool.map(run, range(len(devs))))
-        pending.append((start, len(part), parts))
-        if len(pending) > 1:
-            collect()
-    while pending:
-        collect()
-    return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs), *outputs)
-
-
-# --- ordering by expected cost --------------------------------------------------------------------
-
-
-def _cost_order(values: np.ndarray, todo: np.ndarray, done: np.ndarray, steps: np.ndarray):
-    """Members of ``todo`` sorted by predicted step count (cheapest first).
-
-    The prediction is a least-squares fit of log(steps) on the drawn values (standardised, with
-    squares) over the members solved so far (``done``); until there are more solved members than
-    coefficients, ``todo`` keeps its order. Members with similar expected cost then share a chunk,
-    which shortens the lockstep wait for the slowest.
-    """
-
-    def features(x):
-        z = (x - mean) / scale
-        return np.concatenate([np.ones((len(x), 1)), z, z**2], axis=1)
-
-    mean = values.mean(axis=0)
-    scale = values.std(axis=0)
-    scale = np.where(scale > 0, scale, 1.0)
-    usable = done[steps[done] > 0]
-    if len(todo) == 0 or len(usable) <= 1 + 2 * values.shape[1]:
-        return todo
-    coef, *_ = np.linalg.lstsq(features(values[usable]), np.log(steps[usable]), rcond=None)
-    predicted = features(values[todo]) @ coef
-    return todo[np.argsort(predicted, kind="stable")]
-
-
-# --- storage ---------------------------------------------------------------------------------------
-
-
-def fingerprint(description: Mapping[str, Any]) -> str:
-    """A short hash of a JSON-able description of an ensemble (its configuration)."""
-    text = json.dumps(description, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
-def _differences(old: Mapping, new: Mapping, prefix="") -> list[str]:
-    keys = sorted(set(old) | set(new))
-    out = []
-    for k in keys:
-        a, b = old.get(k), new.get(k)
-        if isinstance(a, Mapping) and isinstance(b, Mapping):
-            out += _differences(a, b, f"{prefix}{k}.")
-        elif json.dumps(a, default=str) != json.dumps(b, default=str):
-            out.append(f"{prefix}{k}")
-    return out
-
-
-def _write_table(path: Path, result: EnsembleResult, finished: np.ndarray) -> None:
-    rows = [r for r, f in zip(result.rows(), finished) if f]
-    fields = list(result.rows()[0]) if len(result) else ["index"]
-
-    def write(tmp):
-        with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=fields)
-            w.writeheader()
-            for r in rows:
-                w.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
-
-    atomic_write(path, write)
-
-
-def _read_table(path: Path, names: Sequence[str]) -> list[dict[str, str]]:
-    if not path.exists():
-        return []
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    if rows and not set(names) <= set(rows[0]):
-        return []
-    return rows
-
-
-# --- the engine ------------------------------------------------------------------------------------
+# --- the run --------------------------------------------------------------------------------------
 
 
 def _check_values(
@@ -439,13 +172,6 @@ def _inadmissible(mechanism: Mechanism, names, values: np.ndarray) -> list[str]:
     return out
 
 
-def _devices(devices) -> list | None:
-    if devices is None:
-        devices = jax.local_devices()
-    devices = list(devices)
-    return devices if len(devices) > 1 else None
-
-
 def _result_message(code: int, t_final: float) -> str:
     try:
         text = diffrax.RESULTS[code]  # pyright: ignore[reportIndexIssue]
@@ -466,13 +192,8 @@ def run_ensemble(
     deviation: Sequence[str] | None = None,
     continuous_fraction: float = DEFAULT_CONTINUOUS_FRACTION,
     contact_events: int | None = None,
-    chunk_size: int = DEFAULT_CHUNK,
-    order: str = "cost",
-    devices: Sequence[Any] | None = None,
-    out: "str | Path | None" = None,
-    table_name: str = "members.csv",
+    settings: EnsembleSettings = EnsembleSettings(),
     description: Mapping[str, Any] | None = None,
-    progress: bool = True,
     callback: Callable[[EnsembleResult, np.ndarray], None] | None = None,
 ) -> EnsembleResult:
     """Solve every member of an ensemble and return its statistics.
@@ -500,17 +221,13 @@ def run_ensemble(
             contacts are located from the solver's steps (``jaxclear.analysis.contact_events``);
             a member with more contacts takes its modes from the output grid instead
             (``contact_modes_located`` 0).
-        chunk_size: members per vectorised solve (rounded up to a multiple of the devices).
-        order: ``"cost"`` (similar expected cost in one chunk, see the module docstring) or
-            ``"index"`` (member order).
-        devices: the devices to spread each chunk over (default all local devices).
-        out: folder to keep results in: ``table_name`` (one row per finished member) and
-            ``ensemble.json`` are replaced atomically after every chunk; a later call with the
-            same arguments resumes from them.
-        table_name: file name of the table in ``out``.
+        settings: how the members run and where the results go (``EnsembleSettings``: chunk size,
+            devices, member order, output folder ``out`` and its table's name, progress bar);
+            none of it is part of the configuration a resumed run must match. With ``out``
+            given, the table (one row per finished member) and ``ensemble.json`` are replaced
+            atomically after every chunk; a later call with the same arguments resumes from them.
         description: JSON-able description of how the values were made (distributions, seed,
             command): part of the configuration that a resumed run must match.
-        progress: show a progress bar over members.
         callback: ``callback(result_so_far, finished_mask)`` after every chunk.
 
     Returns:
@@ -522,10 +239,6 @@ def run_ensemble(
     """
     names, vals = _check_values(mechanism, values)
     n = len(vals)
-    if chunk_size < 1:
-        raise EnsembleError(f"chunk_size must be a positive integer, got {chunk_size}.")
-    if order not in ("cost", "index"):
-        raise EnsembleError(f"order must be 'cost' or 'index', got {order!r}.")
     if not (0.0 < continuous_fraction < 1.0):
         raise EnsembleError(f"continuous_fraction must lie in (0, 1), got {continuous_fraction}.")
     start = t0 if statistics_start is None else float(statistics_start)
@@ -547,8 +260,7 @@ def run_ensemble(
             raise EnsembleError(
                 f"deviation signal {s!r} is unknown; use some of {', '.join(available)}."
             )
-    devs = _devices(devices)
-    chunk = chunk_size_for(chunk_size, devs)
+    chunk = chunk_rows(settings)
     ts = np.linspace(t0, t1, num_points)
     period = None
     if mechanism.driver is not None:
@@ -592,7 +304,7 @@ def run_ensemble(
     )
     finished = np.zeros(n, dtype=bool)
 
-    settings = {
+    configuration = {
         "format": FORMAT,
         "names": list(names),
         "members": n,
@@ -604,29 +316,29 @@ def run_ensemble(
         "deviation": list(deviation),
         "continuous_fraction": continuous_fraction,
         "contact_events": contact_events,
-        "mechanism": _mechanism_values(mechanism),
+        "mechanism": mechanism_values(mechanism),
         "description": dict(description or {}),
     }
-    out_dir = Path(out) if out is not None else None
+    out_dir, table_name = settings.out, settings.table_name
     if out_dir is not None:
         out_dir.mkdir(parents=True, exist_ok=True)
-        _resume(out_dir, table_name, settings, result, finished)
+        resume(out_dir, table_name, configuration, result, finished)
 
     bad = _inadmissible(mechanism, names, vals)
     for i, why in enumerate(bad):
         if why and not finished[i]:
             result.messages[i] = why
             finished[i] = True
-    base = np.asarray([float(np.asarray(_get(mechanism, nm))) for nm in names])
+    base = np.asarray([float(np.asarray(get_parameter(mechanism, nm))) for nm in names])
 
     ideal_config = solver_config("fast")
     todo = np.flatnonzero(~finished)
-    bar = progress_bar(progress, n, "members")
+    bar = progress_bar(settings.progress, n, "members")
     bar.update(int(finished.sum()))
     try:
         while len(todo):
-            if order == "cost":
-                todo = _cost_order(vals, todo, np.flatnonzero(finished), result.num_steps)
+            if settings.order == "cost":
+                todo = cost_order(vals, todo, np.flatnonzero(finished), result.num_steps)
             members, todo = todo[:chunk], todo[chunk:]
             batch = np.repeat(base[None, :], chunk, axis=0)
             batch[: len(members)] = vals[members]
@@ -646,8 +358,7 @@ def run_ensemble(
                     jnp.asarray(start, dtype=float),
                 ),
                 batch,
-                chunk_size=chunk,
-                devices=devices,
+                settings=settings,
             )
             wall = (time.perf_counter() - started) / len(members)
             for row, i in enumerate(members):
@@ -655,39 +366,15 @@ def run_ensemble(
                 result.wall_time_s[i] = wall
             finished[members] = True
             if out_dir is not None:
-                _save(out_dir, table_name, settings, result, finished)
+                save(out_dir, table_name, configuration, result, finished)
             if callback is not None:
                 callback(result, finished.copy())
             bar.update(len(members))
     finally:
         bar.close()
     if out_dir is not None:
-        _save(out_dir, table_name, settings, result, finished)
+        save(out_dir, table_name, configuration, result, finished)
     return result
-
-
-def _get(mechanism, name):
-    from ..model import get_parameter
-
-    return get_parameter(mechanism, name)
-
-
-def _mechanism_values(mechanism: Mechanism) -> dict[str, Any]:
-    """The base mechanism as JSON-able values: its parameters by name and its structure."""
-    from ..model import parameter_names
-
-    out: dict[str, Any] = {}
-    for name in parameter_names(mechanism):
-        try:
-            out[name] = float(np.asarray(_get(mechanism, name)))
-        except (TypeError, ValueError):  # a non-scalar parameter: its repr decides
-            out[name] = repr(np.asarray(_get(mechanism, name)).tolist())
-    out["laws"] = {
-        j.name: [type(j.contact_law).__name__, type(j.friction_law).__name__]
-        for j in mechanism.clearance_joints
-    }
-    out["bodies"] = list(mechanism.body_names)
-    return out
 
 
 def mode_statistic_names(joints: Sequence[str]) -> list[str]:
@@ -767,56 +454,3 @@ def _member_modes(contacts, row, joints, ts, start, t_end, period, fraction) -> 
         out[f"combination_{label}_share"] = shares["labels"].get(label, 0.0)
     out["contact_modes_located"] = float(located)
     return out
-
-
-def _save(out_dir: Path, table_name: str, settings, result: EnsembleResult, finished) -> None:
-    _write_table(out_dir / table_name, result, finished)
-    write_json(
-        out_dir / MANIFEST,
-        {
-            "settings": settings,
-            "fingerprint": fingerprint(settings),
-            "finished": int(finished.sum()),
-            "failed": int((finished & (result.status != OK)).sum()),
-            "table": table_name,
-        },
-    )
-
-
-def _resume(out_dir: Path, table_name: str, settings, result: EnsembleResult, finished) -> None:
-    manifest = out_dir / MANIFEST
-    if not manifest.exists():
-        return
-    try:
-        old = json.loads(manifest.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
-        raise EnsembleError(
-            f"{manifest} cannot be read ({e}); remove it or choose another output folder."
-        ) from None
-    if old.get("fingerprint") != fingerprint(settings):
-        changed = _differences(
-            old.get("settings", {}), json.loads(json.dumps(settings, default=str))
-        )
-        raise EnsembleError(
-            f"{out_dir} holds an ensemble with another configuration (changed: "
-            f"{', '.join(changed[:6]) or 'format'}); resume with the same settings, or choose "
-            "another output folder."
-        )
-    for row in _read_table(out_dir / table_name, result.names):
-        i = int(row["index"])
-        if not (0 <= i < len(result)):
-            continue
-        drawn = np.asarray([float(row[nm]) for nm in result.names])
-        if not np.array_equal(drawn, result.values[i]):
-            raise EnsembleError(
-                f"{out_dir / table_name}: member {i} has other drawn values than this run "
-                "would draw; resume with the same settings and seed, or choose another folder."
-            )
-        for k in result.statistics:
-            if k in row and row[k] != "":
-                result.statistics[k][i] = float(row[k])
-        result.status[i] = row.get("status", FAILED)
-        result.messages[i] = row.get("message", "")
-        result.num_steps[i] = int(row.get("num_steps", 0) or 0)
-        result.wall_time_s[i] = float(row.get("wall_time_s", 0.0) or 0.0)
-        finished[i] = True

@@ -50,7 +50,7 @@ from ..io._measurements import Measurements
 from ..model import Mechanism, with_parameters
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, gradient_solver, solver_config
-from ._ensemble import map_members
+from ._engine import EnsembleSettings, map_members
 from ._parameter_space import FitParameter, ParameterSpace, parse_parameters, scan_values
 
 DEFAULT_HORIZONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
@@ -345,7 +345,7 @@ def identify(
                     masks[first],
                 ),
                 us,
-                chunk_size=SCAN_CHUNK,
+                settings=EnsembleSettings(chunk_size=SCAN_CHUNK),
                 on_chunk=lambda start, stop: bar.update(1),
             )
             losses = np.sum(r**2, axis=1) / counts[first]

@@ -30,7 +30,7 @@ from ..dynamics._constraints import constraint_velocity, constraints
 from ..model import Mechanism, with_parameters
 from ..solve._simulate import assemble, initial_state, simulate
 from ..solve._solver import SolverConfig, recommended_solver, solver_config
-from ._ensemble import DEFAULT_CHUNK, map_members, swept_values
+from ._engine import EnsembleSettings, map_members, swept_values
 
 METHODS = ("tangent", "two_trajectory")
 
@@ -541,8 +541,7 @@ def lyapunov_sweep(
     solver: "str | SolverConfig | None" = None,
     method: str = "tangent",
     project: bool = True,
-    chunk_size: int = DEFAULT_CHUNK,
-    devices=None,
+    settings: EnsembleSettings = EnsembleSettings(),
 ) -> LyapunovSweep:
     """``largest_lyapunov`` for each value of one named parameter, in vmapped chunks
     (``map_members``, as ``bifurcation_points``).
@@ -560,7 +559,9 @@ def lyapunov_sweep(
         t0, transient: start and start-up time left out, s.
         solver: default ``lyapunov_solver(mechanism)`` (rtol 1e-9; see ``largest_lyapunov``).
         method: ``"tangent"`` or ``"two_trajectory"``. project: as in ``largest_lyapunov``.
-        chunk_size: values per vectorised solve. devices: devices to split each chunk over.
+        settings: ``chunk_size`` (values per vectorised solve, at most the number of values) and
+            ``devices`` (to split each chunk over) of an ``EnsembleSettings``; its other fields
+            are not used here.
 
     Returns:
         A ``LyapunovSweep``.
@@ -594,8 +595,7 @@ def lyapunov_sweep(
             bool(project),
         ),
         values[:, None],
-        chunk_size=min(chunk_size, values.size),
-        devices=devices,
+        settings=dataclasses.replace(settings, chunk_size=min(settings.chunk_size, values.size)),
     )
     return LyapunovSweep(
         parameter=name,

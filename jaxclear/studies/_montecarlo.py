@@ -6,9 +6,12 @@ from typing import Any
 
 import numpy as np
 
+from .._core._errors import EnsembleError
 from ..model import Mechanism, parameter_info
 from ._distributions import distribution_from_spec
-from ._ensemble import EnsembleError, EnsembleResult, run_ensemble
+from ._engine import EnsembleSettings
+from ._ensemble import run_ensemble
+from ._ensemble_result import EnsembleResult
 
 
 def draw(distributions: Mapping[str, Any], samples: int, seed: int = 0) -> dict[str, np.ndarray]:
@@ -46,6 +49,7 @@ def montecarlo(
     t1: float,
     *,
     seed: int = 0,
+    settings: EnsembleSettings = EnsembleSettings(),
     description: Mapping[str, Any] | None = None,
     **options,
 ) -> EnsembleResult:
@@ -59,9 +63,11 @@ def montecarlo(
         samples: number of members.
         t1: end time, s.
         seed: the seed of the draws.
+        settings: how the members run and where the results go (``EnsembleSettings``: chunk
+            size, devices, order, ``out``, table name, progress bar), as in ``run_ensemble``.
         description: more JSON-able configuration a resumed run must match (e.g. the command).
         **options: passed to ``run_ensemble`` (``t0``, ``statistics_start``, ``solver``,
-            ``chunk_size``, ``out``, ``progress``, ...).
+            ``deviation``, ...).
 
     Returns:
         An ``EnsembleResult`` whose ``names`` are the drawn parameters.
@@ -77,7 +83,7 @@ def montecarlo(
         "distributions": {n: d.describe() for n, d in dists.items()},
         **dict(description or {}),
     }
-    return run_ensemble(mechanism, values, t1, description=info, **options)
+    return run_ensemble(mechanism, values, t1, settings=settings, description=info, **options)
 
 
 def sweep_values(
@@ -105,6 +111,7 @@ def sweep(
     values: Sequence[float],
     t1: float,
     *,
+    settings: EnsembleSettings = EnsembleSettings(),
     description: Mapping[str, Any] | None = None,
     **options,
 ) -> EnsembleResult:
@@ -115,10 +122,12 @@ def sweep(
         name: the swept parameter (``jaxclear.parameter_names``), e.g. ``"B.clearance"``, ``"rpm"``.
         values: its values, SI units.
         t1: end time, s.
+        settings: how the members run and where the results go (``EnsembleSettings``), as in
+            ``run_ensemble``.
         description: more JSON-able configuration a resumed run must match.
         **options: passed to ``run_ensemble``.
     """
     parameter_info(mechanism, name)
     v = sweep_values(values=values)
     info = {"kind": "sweep", "parameter": name, **dict(description or {})}
-    return run_ensemble(mechanism, {name: v}, t1, description=info, **options)
+    return run_ensemble(mechanism, {name: v}, t1, settings=settings, description=info, **options)

@@ -23,7 +23,7 @@ from ..analysis._signals import checked_signal_names, signal_names, signals
 from ..model import Mechanism, with_parameters
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
-from ._ensemble import DEFAULT_CHUNK, map_members, swept_values
+from ._engine import EnsembleSettings, map_members, swept_values
 
 DEFAULT_SKIP_REVOLUTIONS = 1
 """Start-up revolutions left out of a section by default: the journals start centred with the
@@ -260,8 +260,7 @@ def bifurcation_points(
     signals: Sequence[str] | None = None,
     solver: "str | SolverConfig" = "auto",
     phase: float = 0.0,
-    chunk_size: int = DEFAULT_CHUNK,
-    devices=None,
+    settings: EnsembleSettings = EnsembleSettings(),
 ) -> BifurcationDiagram:
     """Bifurcation diagram: the Poincaré section (``poincare_section``) for each value of one
     named parameter, solved in vmapped chunks by the ensemble engine (``map_members``).
@@ -278,9 +277,10 @@ def bifurcation_points(
         values: its values (N,), SI units (``rpm`` in rev/min).
         revolutions: section points per value.
         t0, skip_revolutions, signals, solver, phase: as in ``poincare_section``.
-        chunk_size: values per vectorised solve (one compilation per chunk size; a vmapped solve
-            steps all members until the slowest is done).
-        devices: devices to split each chunk over (default all local devices).
+        settings: ``chunk_size`` (values per vectorised solve, at most the number of values: one
+            compilation per chunk size; a vmapped solve steps all members until the slowest is
+            done) and ``devices`` (to split each chunk over, default all local devices) of an
+            ``EnsembleSettings``; its other fields are not used here.
 
     Returns:
         A ``BifurcationDiagram``.
@@ -303,8 +303,7 @@ def bifurcation_points(
         _bifurcation_member,
         (mechanism, name, revolutions, float(t0), skip, names, config, float(phase)),
         values[:, None],
-        chunk_size=min(chunk_size, values.size),
-        devices=devices,
+        settings=dataclasses.replace(settings, chunk_size=min(settings.chunk_size, values.size)),
     )
     return BifurcationDiagram(
         parameter=name,

@@ -1,0 +1,293 @@
+"""The vectorised engine: one function of a member's row, evaluated for many rows in chunks.
+
+``map_members`` runs ``fn(v, *args)`` for every row ``v`` of a table of members. The file-backed
+ensemble run (``run_ensemble``), bifurcation diagrams (``bifurcation_points``), Lyapunov sweeps
+(``lyapunov_sweep``) and identification's global scan all solve their members through it. How
+it runs is set by one ``EnsembleSettings``:
+
+- members are solved ``chunk_size`` at a time by one compiled, vmapped call (one compilation per
+  chunk size, function and static arguments); a last, partial chunk is padded by repeating its
+  last row, so that every chunk has one shape; memory grows with the chunk;
+- with several local devices (``jax.local_devices()``: GPUs, or CPU cores exposed by
+  ``XLA_FLAGS=--xla_force_host_platform_device_count=N``) each chunk is split over the devices:
+  every device solves its own share as its own computation, launched from its own thread;
+- a vmapped adaptive solve steps all its members until the slowest finishes (lockstep), so a run
+  that learns its members' costs as it goes may order the rest by expected cost before it cuts
+  the next chunk (``cost_order``, ``EnsembleSettings.order``).
+
+Nothing here reads or writes files.
+"""
+
+import collections
+import concurrent.futures
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._core._errors import EnsembleError
+from ..model import Mechanism, parameter_names
+
+DEFAULT_CHUNK = 64
+"""Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
+ORDERS = ("cost", "index")
+"""Member orders of ``EnsembleSettings.order``."""
+
+
+def _device_tuple(devices: Any) -> tuple | None:
+    """``devices`` as a tuple (``None`` stays ``None``: all local devices)."""
+    if devices is None:
+        return None
+    try:
+        return tuple(devices)
+    except TypeError:
+        raise EnsembleError(
+            f"devices must be a sequence of JAX devices (e.g. jax.local_devices()[:2]), or None "
+            f"for all local devices; got {devices!r}."
+        ) from None
+
+
+def _is_whole(size: Any) -> bool:
+    return (
+        isinstance(size, int | float | np.integer | np.floating)
+        and not isinstance(size, bool | np.bool_)
+        and bool(np.isfinite(size))
+        and int(size) == size
+    )
+
+
+def _whole(size: Any) -> int:
+    """A whole number (``4``, ``4.0``, ``np.int64(4)``) as an ``int``; anything else unchanged, for
+    ``__check_init__`` to refuse."""
+    return int(size) if _is_whole(size) else size
+
+
+def _flag(on: Any) -> bool:
+    """A NumPy bool as a Python ``bool``; anything else unchanged, for ``__check_init__``."""
+    return bool(on) if isinstance(on, np.bool_) else on
+
+
+def _folder(out: Any) -> Path | None:
+    """``out`` as a ``Path`` (``None`` stays ``None``: nothing is written)."""
+    if out is None:
+        return None
+    if not isinstance(out, str | os.PathLike):
+        raise EnsembleError(
+            f"out must be a folder (a str or a pathlib.Path), or None to keep nothing on disk; "
+            f"got {out!r}."
+        )
+    return Path(out)
+
+
+class EnsembleSettings(eqx.Module):
+    """How an ensemble's members are run and where its results go (all static).
+
+    None of these is part of the configuration a resumed run must match: a run resumed from
+    ``out`` may use other values. ``map_members`` and the
+    sweeps built on it (``bifurcation_points``, ``lyapunov_sweep``) use ``chunk_size`` and
+    ``devices``; ``run_ensemble`` (and ``montecarlo``, ``sweep``) uses them all.
+
+    Attributes:
+        chunk_size: members per vectorised solve (one compilation per chunk size), rounded up to
+            a multiple of the devices; memory grows with it. ``run_ensemble`` pads a last, partial
+            chunk; ``bifurcation_points`` and ``lyapunov_sweep`` lower it to their number of
+            values.
+        devices: the devices to split each chunk over (a sequence of JAX devices, e.g.
+            ``jax.local_devices()[:2]``); ``None``: all local devices.
+        order: ``"cost"`` (members of similar expected cost in one chunk, see ``cost_order``)
+            or ``"index"`` (member order).
+        out: folder to keep the results in (``run_ensemble``: the member table and the manifest
+            ``ensemble.json``, replaced after every chunk; a later call with the same arguments
+            resumes from them); ``None`` keeps nothing on disk.
+        table_name: file name of the member table in ``out``.
+        progress: show a progress bar over members.
+
+    Raises:
+        EnsembleError: a field out of its range, naming the field and what is allowed.
+    """
+
+    chunk_size: int = eqx.field(static=True, default=DEFAULT_CHUNK, converter=_whole)
+    devices: tuple | None = eqx.field(static=True, default=None, converter=_device_tuple)
+    order: str = eqx.field(static=True, default="cost")
+    out: Path | None = eqx.field(static=True, default=None, converter=_folder)
+    table_name: str = eqx.field(static=True, default="members.csv")
+    progress: bool = eqx.field(static=True, default=True, converter=_flag)
+
+    def __check_init__(self):
+        size = self.chunk_size
+        if not isinstance(size, int) or isinstance(size, bool) or size < 1:
+            raise EnsembleError(
+                f"chunk_size must be a positive integer (members per vectorised solve), got "
+                f"{size!r}."
+            )
+        if self.devices is not None:
+            if not self.devices:
+                raise EnsembleError(
+                    "devices is empty: give at least one device, or None for all local devices."
+                )
+            for d in self.devices:
+                if not isinstance(d, jax.Device):
+                    raise EnsembleError(
+                        f"devices must hold JAX devices (e.g. jax.local_devices()[:2]), got {d!r}."
+                    )
+        if self.order not in ORDERS:
+            raise EnsembleError(f"order must be 'cost' or 'index', got {self.order!r}.")
+        name = self.table_name
+        if not isinstance(name, str) or not name or Path(name).name != name:
+            raise EnsembleError(
+                f"table_name must be a file name without a folder (the table is written into "
+                f"out), e.g. 'members.csv'; got {name!r}."
+            )
+        if not isinstance(self.progress, bool):
+            raise EnsembleError(f"progress must be True or False, got {self.progress!r}.")
+
+
+def _split_devices(devices: Sequence[Any] | None) -> list | None:
+    """The devices a chunk is split over: ``devices`` (default all local devices), or ``None``
+    when there is only one (no split)."""
+    if devices is None:
+        devices = jax.local_devices()
+    devices = list(devices)
+    return devices if len(devices) > 1 else None
+
+
+def chunk_size_for(chunk_size: int, devices) -> int:
+    """``chunk_size`` rounded up to a multiple of the number of devices."""
+    per = len(devices) if devices else 1
+    return -(-int(chunk_size) // per) * per
+
+
+def chunk_rows(settings: EnsembleSettings) -> int:
+    """Rows per vectorised call under ``settings``: its ``chunk_size`` rounded up to a multiple of
+    the devices it splits a chunk over."""
+    return chunk_size_for(settings.chunk_size, _split_devices(settings.devices))
+
+
+def swept_values(mechanism: Mechanism, name: str, values) -> np.ndarray:
+    """Check a one-parameter sweep's arguments (``bifurcation_points``, ``lyapunov_sweep``): a
+    known parameter name and a non-empty 1-D array of finite values, returned as floats.
+
+    Raises:
+        ValueError: naming the parameter and what is allowed.
+    """
+    known = parameter_names(mechanism)
+    if name not in known:
+        raise ValueError(
+            f"name {name!r} is not a parameter of this mechanism; choose among {known}."
+        )
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
+        raise ValueError(f"values must be a non-empty 1-D array of finite numbers, got {values!r}.")
+    return values
+
+
+@eqx.filter_jit
+def _vmap_chunk(fn, args, values):
+    """``fn(v, *args)`` for every row ``v`` of ``values``, vmapped."""
+    return jax.vmap(lambda v: fn(v, *args))(values)
+
+
+def map_members(
+    fn: Callable[..., Any],
+    args: tuple,
+    values,
+    *,
+    settings: EnsembleSettings = EnsembleSettings(),
+    on_chunk: Callable[[int, int], Any] | None = None,
+):
+    """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
+
+    The engine's core, shared by ``run_ensemble``, the sweeps and identification's global scan:
+    chunks of ``settings.chunk_size`` rows (the last one padded by repeating its last row, so that
+    every chunk has one shape and one compilation), each one vmapped and split over the devices.
+
+    Args:
+        fn: a module-level function ``fn(v, *args)`` of one member's row ``v`` (a JAX function:
+            it is traced once per chunk shape).
+        args: the other arguments (pytrees; arrays are traced, the rest static).
+        values: (N, p) rows.
+        settings: ``chunk_size`` (rows per vectorised call, rounded up to a multiple of the
+            devices) and ``devices`` (to split each chunk over); its other fields are not used
+            here.
+        on_chunk: ``on_chunk(start, stop)`` after rows ``start:stop`` are done.
+
+    Returns:
+        ``fn``'s outputs as NumPy arrays with a leading axis of N.
+    """
+    values = np.asarray(values, dtype=float)
+    devs = _split_devices(settings.devices)
+    chunk = chunk_size_for(settings.chunk_size, devs)
+    per = chunk // len(devs) if devs else chunk
+    outputs = []
+    pending = collections.deque()
+
+    def collect():
+        start, count, parts = pending.popleft()
+        got = [jax.device_get(p) for p in parts]
+        out = jax.tree_util.tree_map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *got)
+        outputs.append(jax.tree_util.tree_map(lambda x: x[:count], out))
+        if on_chunk is not None:
+            on_chunk(start, start + count)
+
+    for start in range(0, len(values), chunk):
+        part = values[start : start + chunk]
+        padded = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
+        if devs is None:
+            parts = [_vmap_chunk(fn, args, jnp.asarray(padded))]
+        else:
+            # each device solves its own share as an independent computation, launched from its
+            # own thread (JAX releases the GIL while XLA runs): the devices run at once. (A
+            # shard_map over the devices hung for good in some configurations: 12 members
+            # drawing rod_mass with the ideal-joint deviation on two CPU devices.)
+            shares = [padded[k * per : (k + 1) * per] for k in range(len(devs))]
+
+            def run(k, shares=shares):
+                out = _vmap_chunk(fn, args, jax.device_put(shares[k], devs[k]))
+                return jax.block_until_ready(out)
+
+            with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:
+                parts = list(pool.map(run, range(len(devs))))
+        pending.append((start, len(part), parts))
+        if len(pending) > 1:
+            collect()
+    while pending:
+        collect()
+    return jax.tree_util.tree_map(lambda *xs: np.concatenate(xs), *outputs)
+
+
+def cost_order(values: np.ndarray, todo: np.ndarray, done: np.ndarray, steps: np.ndarray):
+    """Members of ``todo`` sorted by predicted step count (cheapest first).
+
+    The prediction is a least-squares fit of log(steps) on the drawn values (standardised, with
+    squares) over the members solved so far (``done``); until there are more solved members than
+    coefficients, ``todo`` keeps its order. Members with similar expected cost then share a chunk,
+    which shortens the lockstep wait for the slowest.
+
+    Args:
+        values: (N, p) every member's drawn values.
+        todo: indices of the members still to solve.
+        done: indices of the members finished so far.
+        steps: (N,) solver steps per member (0 where not solved).
+
+    Returns:
+        ``todo``, reordered.
+    """
+
+    def features(x):
+        z = (x - mean) / scale
+        return np.concatenate([np.ones((len(x), 1)), z, z**2], axis=1)
+
+    mean = values.mean(axis=0)
+    scale = values.std(axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    usable = done[steps[done] > 0]
+    if len(todo) == 0 or len(usable) <= 1 + 2 * values.shape[1]:
+        return todo
+    coef, *_ = np.linalg.lstsq(features(values[usable]), np.log(steps[usable]), rcond=None)
+    predicted = features(values[todo]) @ coef
+    return todo[np.argsort(predicted, kind="stable")]
