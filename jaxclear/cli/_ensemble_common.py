@@ -79,6 +79,16 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
+def accelerator_plugins() -> list[str]:
+    """Installed JAX plugins for GPUs or TPUs (``jax-cuda12-plugin``, ``jax-rocm...``, ``libtpu``),
+    read from the installed distributions without starting JAX's backend."""
+    from importlib import metadata
+
+    prefixes = ("jax-cuda", "jax_cuda", "jax-rocm", "jax_rocm", "libtpu")
+    names = {(d.metadata["Name"] or "").lower() for d in metadata.distributions()}
+    return sorted(n for n in names if n.startswith(prefixes))
+
+
 def apply_device_count(devices: int | None) -> str:
     """Expose the CPU as several JAX devices: add ``DEVICE_COUNT_FLAG`` to ``XLA_FLAGS``.
 
@@ -145,6 +155,13 @@ def prepare(args: argparse.Namespace, command: str) -> Prepared:
         raise UsageError(f"--chunk-size {args.chunk_size}: give 1 or more members per chunk")
     if args.devices is not None and args.devices < 1:
         raise UsageError(f"--devices {args.devices}: give 1 or more")
+    if args.devices is not None and not accelerator_plugins() and args.devices > usable_cores():
+        cores = usable_cores()
+        raise UsageError(
+            f"--devices {args.devices} is more than the {cores} CPU core{'s' if cores > 1 else ''} "
+            f"this process may use (no GPU plugin of JAX is installed); give at most {cores}: "
+            "more devices than cores only pads each chunk and runs slower"
+        )
     fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX starts
     compilation_cache = apply_compilation_cache(config["solver"]["compilation_cache"])
     device_flag = apply_device_count(args.devices)

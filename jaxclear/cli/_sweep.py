@@ -6,10 +6,11 @@ import numpy as np
 
 import jaxclear
 
+from ..internal import inadmissible_values
 from ..studies import EnsembleError, sweep_values
 from ._common import UsageError, one_line
 from ._ensemble_common import add_ensemble_arguments, base_info, finish, prepare, run_engine
-from ._settings import add_setting_arguments, config_reference
+from ._settings import BY_LABEL, add_setting_arguments, check_value, config_reference
 from ._sweep_chaos import add_arguments as add_chaos_arguments
 from ._sweep_chaos import check as check_chaos
 from ._sweep_chaos import run_stages
@@ -98,7 +99,12 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
 def _values(args: argparse.Namespace) -> np.ndarray:
     try:
         if args.values is not None:
-            texts = [t for v in args.values for t in v.split(",") if t.strip()]
+            texts = [t.strip() for v in args.values for t in v.split(",")]
+            if not all(texts):
+                raise UsageError(
+                    f"--values {' '.join(args.values)}: an empty item between commas; give one "
+                    "number between each pair of commas"
+                )
             try:
                 numbers = [float(t) for t in texts]
             except ValueError:
@@ -119,6 +125,11 @@ def _values(args: argparse.Namespace) -> np.ndarray:
             raise UsageError(
                 f"--range {' '.join(args.range)}: N must be an integer (the number of values)"
             ) from None
+        if count == 1 and start != stop:
+            raise UsageError(
+                f"--range {' '.join(args.range)}: N = 1 gives START alone and leaves STOP out; "
+                "give N >= 2, or one value with --values"
+            )
         return sweep_values(start=start, stop=stop, num=count)
     except EnsembleError as e:
         option = "--values" if args.values is not None else "--range"
@@ -134,6 +145,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         info = jaxclear.parameter_info(prepared.mechanism, args.param)
     except jaxclear.ModelError as e:
         raise UsageError(f"--param: {one_line(e)}") from None
+    _check_admissible(prepared.mechanism, args.param, values)
     period = check_chaos(args, prepared.mechanism)
     say = (lambda *a, **k: None) if args.quiet else print
     unit = f" {info.unit}" if info.unit else ""
@@ -159,6 +171,26 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     code = finish(outcome, summary, SWEEP_JSON, SWEEP_CSV, "sweep", plots, say)
     run_stages(args, prepared, outcome, values, period, summary, SWEEP_JSON, plots, say)
     return code
+
+
+def _check_admissible(mechanism, name: str, values: np.ndarray) -> None:
+    """Refuse, before anything is solved, values that ``jaxclear run`` would refuse for the same
+    parameter (rpm: positive and at most ``MAX_RPM``) or that lie outside the parameter's
+    admissible range (a negative clearance, a restitution above 1, ...).
+
+    Raises:
+        UsageError: naming the first offending value and how many there are.
+    """
+    if name == "rpm":
+        setting = BY_LABEL[("mechanism", "rpm")]
+        for v in values:
+            check_value(setting, float(v), "--param rpm: a value")
+    why = [w for w in inadmissible_values(mechanism, (name,), values[:, None]) if w]
+    if why:
+        more = (
+            f" (and {len(why) - 1} more value{'s' if len(why) > 2 else ''})" if len(why) > 1 else ""
+        )
+        raise UsageError(f"--param {name}: {why[0]}{more}; sweep admissible values only")
 
 
 def _combinations(result, mechanism) -> dict:

@@ -154,8 +154,9 @@ def _check_values(
     return names, np.stack(arrays, axis=1)
 
 
-def _inadmissible(mechanism: Mechanism, names, values: np.ndarray) -> list[str]:
-    """Per member, why its drawn values cannot be simulated ("" if they can)."""
+def inadmissible_values(mechanism: Mechanism, names, values: np.ndarray) -> list[str]:
+    """Per member (row of ``values``, one column per name), why its values cannot be simulated
+    ("" if they can): a value outside its parameter's admissible range (``parameter_info``)."""
     out = [""] * len(values)
     for k, n in enumerate(names):
         low, high = parameter_info(mechanism, n).domain
@@ -260,7 +261,6 @@ def run_ensemble(
             raise EnsembleError(
                 f"deviation signal {s!r} is unknown; use some of {', '.join(available)}."
             )
-    chunk = chunk_rows(settings)
     ts = np.linspace(t0, t1, num_points)
     period = None
     if mechanism.driver is not None:
@@ -324,7 +324,7 @@ def run_ensemble(
         out_dir.mkdir(parents=True, exist_ok=True)
         resume(out_dir, table_name, configuration, result, finished)
 
-    bad = _inadmissible(mechanism, names, vals)
+    bad = inadmissible_values(mechanism, names, vals)
     for i, why in enumerate(bad):
         if why and not finished[i]:
             result.messages[i] = why
@@ -333,6 +333,10 @@ def run_ensemble(
 
     ideal_config = solver_config("fast")
     todo = np.flatnonzero(~finished)
+    if 0 < len(todo) < settings.chunk_size:
+        # never pad a chunk beyond the members left (a small run, or a resumed one)
+        settings = dataclasses.replace(settings, chunk_size=len(todo))
+    chunk = chunk_rows(settings)
     bar = progress_bar(settings.progress, n, "members")
     bar.update(int(finished.sum()))
     try:
