@@ -9,5 +9,7 @@ from .studies._engine import DEFAULT_CHUNK as DEFAULT_CHUNK
 from .studies._ensemble import EVENTS_PER_REVOLUTION as EVENTS_PER_REVOLUTION
 from .studies._ensemble import inadmissible_values as inadmissible_values
 from .studies._ensemble_result import MANIFEST as MANIFEST
+from .studies._ensemble_result import ResumeWarning as ResumeWarning
+from .studies._ensemble_result import read_table as read_table
 from .studies._identify import DEFAULT_HORIZONS as DEFAULT_HORIZONS
 from .studies._identify import check_identification as check_identification

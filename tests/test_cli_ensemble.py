@@ -9,6 +9,7 @@ draws or sweeps B.clearance only: one compilation of the engine's chunk serves t
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -380,3 +381,32 @@ def test_two_cpu_devices_in_a_fresh_process(tmp_path):
     assert info["compilation_cache"] == env["JAXCLEAR_CACHE_DIR"]
     stored = [p.name for p in (tmp_path / "cache").iterdir()]
     assert any(name.startswith("jit__vmap_chunk") for name in stored), stored
+
+
+def test_resume_drops_a_torn_last_row(montecarlo_run, tmp_path, capsys):
+    """A crash while the file system wrote samples.csv leaves its last row cut short: resume drops
+    it, says so, and solves that member again; the other rows stay as they were."""
+    out = tmp_path / "torn"
+    shutil.copytree(montecarlo_run, out)
+    table = out / "samples.csv"
+    text = table.read_text()
+    rows = read_rows(table)
+    table.write_text(text[: len(text) - len(text.splitlines()[-1]) // 2 - 1])  # mid last row
+    assert cli.main(montecarlo_argv(out)) == 0
+    printed = capsys.readouterr().out
+    assert "note: " in printed and "last row was cut short" in printed
+    assert f"{SAMPLES - 1} of {SAMPLES} members were already finished, 1 left to solve" in printed
+    again = read_rows(table)
+    assert len(again) == SAMPLES
+    assert again[:-1] == rows[:-1]
+    assert again[-1]["index"] == rows[-1]["index"] and again[-1]["status"] == "ok"
+
+
+def test_resume_refuses_a_row_changed_by_hand(montecarlo_run, tmp_path, capsys):
+    out = tmp_path / "edited"
+    shutil.copytree(montecarlo_run, out)
+    table = out / "samples.csv"
+    lines = table.read_text().splitlines(keepends=True)
+    lines[2] = "x" + lines[2]  # the second member's index is no longer a number
+    table.write_text("".join(lines))
+    assert_usage_error(capsys, montecarlo_argv(out), "line 3: not a member row")

@@ -7,10 +7,12 @@ written after every chunk, resumed when the same command runs again.
 """
 
 import argparse
+import csv
 import dataclasses
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -19,7 +21,7 @@ from typing import Any
 import jaxclear
 
 from ..analysis import DEFAULT_CONTINUOUS_FRACTION
-from ..internal import DEFAULT_CHUNK, MANIFEST
+from ..internal import DEFAULT_CHUNK, MANIFEST, ResumeWarning, read_table
 from ..io import package_versions, write_json
 from ..studies import EnsembleError, EnsembleSettings
 from ._common import (
@@ -228,14 +230,17 @@ class Outcome:
     wall_time_s: float
 
 
-def _previous(out_dir: Path) -> int:
-    """Members the output folder's manifest says are finished (0 if it has none)."""
-    import json
-
-    try:
-        return int(json.loads((out_dir / MANIFEST).read_text(encoding="utf-8"))["finished"])
-    except (OSError, ValueError, KeyError, TypeError):
+def _previous(out_dir: Path, table_name: str) -> int:
+    """Members a resumed run finds finished in the output folder (0 without a manifest): the
+    table's rows, less a torn last row (which the engine drops and solves again)."""
+    if not (out_dir / MANIFEST).exists():
         return 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResumeWarning)  # the engine says it
+        try:
+            return len(read_table(out_dir / table_name, ()))
+        except (OSError, UnicodeDecodeError, csv.Error):
+            return 0
 
 
 def run_engine(
@@ -261,7 +266,7 @@ def run_engine(
     devices = local_devices(args.devices)
     per = len(devices)
     chunk = -(-min(args.chunk_size, members) // per) * per
-    previous = _previous(out_dir)
+    previous = _previous(out_dir, table_name)
     if args.devices is not None and per < args.devices:
         say(
             f"note: {per} device{'s' if per > 1 else ''} available, not {args.devices} (JAX had "
@@ -279,14 +284,21 @@ def run_engine(
     )
     started = time.perf_counter()
     try:
-        result = call(
-            t0=0.0,
-            statistics_start=prepared.statistics_start,
-            num_points=prepared.num_points,
-            solver=prepared.solver,
-            continuous_fraction=prepared.continuous_fraction,
-            settings=engine,
-        )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ResumeWarning)
+            result = call(
+                t0=0.0,
+                statistics_start=prepared.statistics_start,
+                num_points=prepared.num_points,
+                solver=prepared.solver,
+                continuous_fraction=prepared.continuous_fraction,
+                settings=engine,
+            )
+        for w in caught:  # what resuming set right is said; other warnings go on as they came
+            if issubclass(w.category, ResumeWarning):
+                say(f"note: {w.message}")
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     except EnsembleError as e:
         raise UsageError(one_line(e)) from None
     except jaxclear.ModelError as e:

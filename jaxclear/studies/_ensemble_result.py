@@ -13,6 +13,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -146,12 +147,30 @@ def write_table(path: Path, result: EnsembleResult, finished: np.ndarray) -> Non
     atomic_write(path, write)
 
 
+class ResumeWarning(UserWarning):
+    """Something in an output folder was set right while resuming (a torn last row dropped)."""
+
+
 def read_table(path: Path, names: Sequence[str]) -> list[dict[str, str]]:
-    """The rows of a member table as strings (none if absent, or without the drawn ``names``)."""
+    """The rows of a member table as strings (none if absent, or without the drawn ``names``).
+
+    The table is always replaced whole and ends with a newline, so a last row without one (or with
+    fewer fields than the header) was torn by a crash while the file system wrote it: it is dropped
+    with a ``ResumeWarning`` and its member is solved again.
+    """
     if not path.exists():
         return []
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
+    text = path.read_text(encoding="utf-8")
+    rows = list(csv.DictReader(text.splitlines()))
+    if rows and (not text.endswith("\n") or None in rows[-1].values()):
+        warnings.warn(
+            ResumeWarning(
+                f"{path}: the last row was cut short (a write interrupted by a crash); dropped, "
+                "its member is solved again"
+            ),
+            stacklevel=2,
+        )
+        rows = rows[:-1]
     if rows and not set(names) <= set(rows[0]):
         return []
     return rows
@@ -227,21 +246,30 @@ def resume(
             f"{', '.join(changed[:6]) or 'format'}); resume with the same settings, or choose "
             "another output folder."
         )
-    for row in read_table(out_dir / table_name, result.names):
-        i = int(row["index"])
+    for line, row in enumerate(read_table(out_dir / table_name, result.names), start=2):
+        try:
+            i = int(row["index"])
+            drawn = np.asarray([float(row[nm]) for nm in result.names])
+            stats = {k: float(row[k]) for k in result.statistics if k in row and row[k] != ""}
+            steps = int(row.get("num_steps", 0) or 0)
+            wall = float(row.get("wall_time_s", 0.0) or 0.0)
+        except (KeyError, TypeError, ValueError) as e:
+            raise EnsembleError(
+                f"{out_dir / table_name}, line {line}: not a member row ({type(e).__name__}: {e}); "
+                "the table was changed by hand or by another program: restore it, or choose another "
+                "output folder."
+            ) from None
         if not (0 <= i < len(result)):
             continue
-        drawn = np.asarray([float(row[nm]) for nm in result.names])
         if not np.array_equal(drawn, result.values[i]):
             raise EnsembleError(
                 f"{out_dir / table_name}: member {i} has other drawn values than this run "
                 "would draw; resume with the same settings and seed, or choose another folder."
             )
-        for k in result.statistics:
-            if k in row and row[k] != "":
-                result.statistics[k][i] = float(row[k])
+        for k, v in stats.items():
+            result.statistics[k][i] = v
         result.status[i] = row.get("status", FAILED)
         result.messages[i] = row.get("message", "")
-        result.num_steps[i] = int(row.get("num_steps", 0) or 0)
-        result.wall_time_s[i] = float(row.get("wall_time_s", 0.0) or 0.0)
+        result.num_steps[i] = steps
+        result.wall_time_s[i] = wall
         finished[i] = True
