@@ -96,19 +96,19 @@ def _vmapped(elements, function):
 
 
 def batched_force_and_cache(mechanism, elements, q, qd, t, states, gamma_h=None):
-    """(Q contribution of all ``elements``, stacked cache); ``gamma_h``: see
-    ``clearance.local_force_and_cache``."""
+    """(Q contribution of all ``elements``, stacked cache, stacked stage); ``gamma_h`` and the
+    stage: see ``clearance.local_force_and_cache``."""
     ib, ij = _indices(mechanism, elements)
     q3, qd3 = _extended(q), _extended(qd)
     fn = _vmapped(
         elements,
         lambda e, *a: clearance.local_force_and_cache(e, *a, gamma_h=gamma_h),
     )
-    on_bearing, on_journal, cache = fn(
+    on_bearing, on_journal, cache, stage = fn(
         q3[ib], qd3[ib], q3[ij], qd3[ij], _stack_states(elements, states)
     )
     force = jnp.zeros_like(q3).at[ib].add(on_bearing).at[ij].add(on_journal)
-    return force[:-1].reshape(-1), cache
+    return force[:-1].reshape(-1), cache, stage
 
 
 def batched_state_rates(mechanism, elements, cache, q, qd, qdd, t, states) -> dict:

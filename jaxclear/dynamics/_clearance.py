@@ -239,40 +239,38 @@ def contact_forces(
 
 
 def local_force_and_cache(joint: ClearanceJoint, qb, qdb, qj, qdj, state, gamma_h=None):
-    """(generalised force on the bearing body (3,), on the journal body (3,), cache).
+    """(generalised force on the bearing body (3,), on the journal body (3,), cache, stage).
 
     The cache, (``JointKinematics``, ``ContactForces``), goes to ``local_state_derivative``.
 
     With ``gamma_h`` (an implicit stage of an IMEX method, ``dynamics._equations.implicit_stage``)
     ``state`` is the stage's explicit part P and the internal state used is the solution s of
     s = P + γh f_I(s) (closed form: the stiff part is affine and diagonal in the state, with
-    coefficients from this kinematics); the cache then also holds s and f_I(s).
+    coefficients from this kinematics); ``stage`` is then (s, f_I(s)), else ``None``.
     """
     k = local_kinematics(joint, qb, qdb, qj, qdj)
-    solved = None if gamma_h is None else solve_stiff_state(joint, k, state, gamma_h)
-    if solved is not None:
-        state = solved[0]
+    stage = None if gamma_h is None else solve_stiff_state(joint, k, state, gamma_h)
+    if stage is not None:
+        state = stage[0]
     k, f = local_contact_forces(joint, qb, qdb, qj, qdj, state, k)
     fj = f.force_on_journal
     on_journal = _body_wrench(qj, k.journal_contact_point, fj)
     on_bearing = _body_wrench(qb, k.bearing_contact_point, -fj)
-    if solved is not None:
-        return on_bearing, on_journal, (k, f, *solved)
-    return on_bearing, on_journal, (k, f)
+    return on_bearing, on_journal, (k, f), stage
 
 
 def force_and_cache(joint: ClearanceJoint, index: Index, q, qd, state, gamma_h=None):
-    """(Q contribution of the joint (size of q), cache for ``state_derivative_cached``); with
-    ``gamma_h`` see ``local_force_and_cache``."""
+    """(Q contribution of the joint (size of q), cache for ``state_derivative_cached``, stage);
+    ``gamma_h`` and the stage: see ``local_force_and_cache``."""
     ib, ij = body_indices(joint, index)
-    on_bearing, on_journal, cache = local_force_and_cache(
+    on_bearing, on_journal, cache, stage = local_force_and_cache(
         joint, *_gather((ib, ij), q, qd), state, gamma_h
     )
     force = jnp.zeros_like(q)
     for i, f in ((ib, on_bearing), (ij, on_journal)):
         if i is not None:
             force = force.at[3 * i : 3 * i + 3].add(f)
-    return force, cache
+    return force, cache, stage
 
 
 def generalized_force(joint: ClearanceJoint, index: Index, q, qd, state) -> Float[Array, " n"]:

@@ -16,13 +16,8 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from . import _clearance as clearance
-from ._batched import (
-    batched_force_and_cache,
-    batched_state_rates,
-    batched_stiff_rates,
-    groups,
-)
 from ._constraints import constraint_jacobian, constraints, gamma
+from ._groups import GroupCache, evaluation_groups
 
 
 class Evaluation(eqx.Module):
@@ -32,7 +27,7 @@ class Evaluation(eqx.Module):
         q, qd, qdd: coordinates, velocities and accelerations (n,).
         multipliers: Lagrange multipliers λ (m,) in ``mechanism.constraint_elements`` row order.
         phi, phi_dot: position and velocity constraint residuals Φ, Φ̇ (m,).
-        forces: generalised forces Q (n,), gravity and force elements.
+        forces: generalised forces Q (n,): gravity, force elements and clearance contacts.
         states: {force element name: internal state}.
         state_rates: {force element name: internal-state rate}.
     """
@@ -48,37 +43,27 @@ class Evaluation(eqx.Module):
     state_rates: dict[str, Float[Array, " s"]]
 
 
-def generalized_forces(
-    mechanism, t, q, qd, states: dict, caches: dict | None = None, gamma_h=None
-) -> Float[Array, " n"]:
-    """Q: gravity plus every force element (applied forces, springs), then the clearance contacts.
+def forces_and_caches(
+    mechanism, t, q, qd, states: dict, gamma_h=None
+) -> tuple[Float[Array, " n"], tuple[GroupCache, ...]]:
+    """Q and each evaluation group's cache (in the order of ``evaluation_groups(mechanism)``).
 
-    Same-kind clearance joints are evaluated together (``_batched``). If ``caches`` is a dict, each
-    element's cache (for the state rates) is stored in it under the element's name, each group's
-    under the group's position. ``gamma_h``: the clearance joints' states are an IMEX stage's
-    explicit parts, solved for the stage's states (``implicit_stage``).
+    Q is gravity plus each group's contribution, summed in that order: every force element
+    (applied forces, springs), then the clearance contacts (same-kind joints evaluated together,
+    ``_batched``). ``gamma_h``: the internal states are an IMEX stage's explicit parts, solved for
+    the stage's states (``implicit_stage``; ``AbstractEvaluationGroup.force_and_cache``).
     """
     m = jnp.stack([b.mass for b in mechanism.bodies])
     grav = jnp.concatenate(
         [m[:, None] * mechanism.gravity[None, :], jnp.zeros((len(m), 1))], axis=1
     )
     total = grav.reshape(-1).astype(q.dtype)
-    for element in mechanism.forces:
-        force, cache = element.force_and_cache(mechanism.index, q, qd, t, states[element.name])
+    caches = []
+    for group in evaluation_groups(mechanism):
+        force, cache = group.force_and_cache(mechanism, t, q, qd, states, gamma_h)
         total = total + force
-        if caches is not None:
-            caches[element.name] = cache
-    for k, group in enumerate(groups(mechanism)):
-        if len(group) == 1:
-            force, cache = clearance.force_and_cache(
-                group[0], mechanism.index, q, qd, states[group[0].name], gamma_h
-            )
-        else:
-            force, cache = batched_force_and_cache(mechanism, group, q, qd, t, states, gamma_h)
-        total = total + force
-        if caches is not None:
-            caches[k] = cache
-    return total
+        caches.append(cache)
+    return total, tuple(caches)
 
 
 def solve_accelerations(mechanism, t, q, qd, forces):
@@ -134,34 +119,25 @@ def spd_solve(matrix, rhs):
 def evaluate(mechanism, t, y) -> Evaluation:
     """Everything the right-hand side computes at (t, y): an ``Evaluation``."""
     q, qd, states = mechanism.split_state(y)
-    return _evaluate(mechanism, t, q, qd, states, {})
+    return _evaluate(mechanism, t, q, qd, states)[0]
 
 
-def _evaluate(mechanism, t, q, qd, states, caches, gamma_h=None) -> Evaluation:
-    forces = generalized_forces(mechanism, t, q, qd, states, caches, gamma_h)
-    if gamma_h is not None:  # the clearance joints' stage states, solved in generalized_forces
+def _evaluate(
+    mechanism, t, q, qd, states, gamma_h=None
+) -> tuple[Evaluation, tuple[GroupCache, ...]]:
+    """(``Evaluation``, the evaluation groups' caches); ``gamma_h``: see ``forces_and_caches``."""
+    groups = evaluation_groups(mechanism)
+    forces, caches = forces_and_caches(mechanism, t, q, qd, states, gamma_h)
+    if gamma_h is not None:  # the stage's internal states, solved in forces_and_caches
         states = dict(states)
-        for k, group in enumerate(groups(mechanism)):
-            solved = caches[k][2]
-            for i, e in enumerate(group):
-                states[e.name] = solved[i] if len(group) > 1 else solved
+        for group, cache in zip(groups, caches):
+            assert cache.stage is not None
+            states.update(group.per_element(cache.stage[0]))
     qdd, lam, phi, phi_dot = solve_accelerations(mechanism, t, q, qd, forces)
     rates = {}
-    for e in mechanism.forces:
-        rates[e.name] = e.state_derivative_cached(
-            caches[e.name], mechanism.index, q, qd, qdd, t, states[e.name]
-        )
-    for k, group in enumerate(groups(mechanism)):
-        if len(group) == 1:
-            e = group[0]
-            rates[e.name] = clearance.state_derivative_cached(
-                e, caches[k][:2], mechanism.index, q, qd, qdd, states[e.name]
-            )
-        else:
-            rates.update(
-                batched_state_rates(mechanism, group, caches[k][:2], q, qd, qdd, t, states)
-            )
-    return Evaluation(
+    for group, cache in zip(groups, caches):
+        rates.update(group.state_rates(mechanism, cache, t, q, qd, qdd, states))
+    evaluation = Evaluation(
         q=q,
         qd=qd,
         qdd=qdd,
@@ -172,6 +148,7 @@ def _evaluate(mechanism, t, q, qd, states, caches, gamma_h=None) -> Evaluation:
         states=states,
         state_rates=rates,
     )
+    return evaluation, caches
 
 
 def _rows(mechanism, head, per_element: dict, dtype) -> Float[Array, " N"]:
@@ -199,20 +176,11 @@ def implicit_stage(t, partial, gamma_h, mechanism):
     replaced by constants in a local copy.)
     """
     q, qd, states = mechanism.split_state(partial)
-    states = dict(states)
+    out, caches = _evaluate(mechanism, t, q, qd, states, gamma_h)
     stiff = {}
-    for e in mechanism.forces:  # force elements with internal states solve theirs apart
-        states[e.name], stiff[e.name] = clearance.solve_affine(
-            lambda x, e=e: e.stiff_state_derivative(mechanism.index, q, qd, t, x),
-            states[e.name],
-            gamma_h,
-        )
-    caches = {}
-    out = _evaluate(mechanism, t, q, qd, states, caches, gamma_h)
-    for k, group in enumerate(groups(mechanism)):
-        rates = caches[k][3]
-        for i, e in enumerate(group):
-            stiff[e.name] = rates[i] if len(group) > 1 else rates
+    for group, cache in zip(evaluation_groups(mechanism), caches):
+        assert cache.stage is not None  # solved in forces_and_caches with gamma_h
+        stiff.update(group.per_element(cache.stage[1]))
     zeros = jnp.zeros((2 * mechanism.num_coordinates,), partial.dtype)
     return (
         _rows(mechanism, (q, qd), out.states, partial.dtype),
@@ -225,18 +193,9 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """The stiff part of dy/dt (internal states only), integrated implicitly by IMEX solvers."""
     q, qd, states = mechanism.split_state(y)
     n = mechanism.num_coordinates
-    rates = {
-        e.name: e.stiff_state_derivative(mechanism.index, q, qd, t, states[e.name])
-        for e in mechanism.forces
-    }
-    for group in groups(mechanism):
-        if len(group) == 1:
-            e = group[0]
-            rates[e.name] = clearance.stiff_state_derivative(
-                e, mechanism.index, q, qd, states[e.name]
-            )
-        else:
-            rates.update(batched_stiff_rates(mechanism, group, q, qd, t, states))
+    rates = {}
+    for group in evaluation_groups(mechanism):
+        rates.update(group.stiff_rates(mechanism, t, q, qd, states))
     return _rows(mechanism, (jnp.zeros((2 * n,), y.dtype),), rates, y.dtype)
 
 
@@ -274,11 +233,10 @@ def memory_offset_shift(mechanism, y) -> Float[Array, " N"]:
 
 def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
     """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
-    internal = [e.initial_state(mechanism.index, q0, qd0) for e in mechanism.forces]
-    internal += [
-        clearance.initial_state(c, mechanism.index, q0, qd0) for c in mechanism.clearance_joints
-    ]
-    parts = [q0, qd0, *internal]
+    internal = {}
+    for group in evaluation_groups(mechanism):
+        internal.update(group.initial_states(mechanism, q0, qd0))
+    parts = [q0, qd0, *(internal[e.name] for e in mechanism.force_elements)]
     return jnp.concatenate([jnp.reshape(jnp.asarray(p, dtype=float), (-1,)) for p in parts])
 
 

@@ -4,6 +4,9 @@ A friction law maps the slip velocity v_T of the journal's contact point relativ
 (along t), the normal force F_N >= 0 and its own internal state (LuGre's bristle deflection z; none
 for Coulomb-type laws) to the friction force on the journal along t, which opposes v_T. Its
 internal state evolves by ``state_derivative`` and lives in the integrator's state vector.
+
+Laws with internal states subclass ``AbstractFrictionLaw`` (see ``LuGre``); laws without subclass
+``AbstractStatelessFrictionLaw`` and implement ``force`` only.
 """
 
 import abc
@@ -17,9 +20,13 @@ from ..contact._base import Smoothing
 
 
 class AbstractFrictionLaw(eqx.Module):
-    """Base of all friction laws."""
+    """Base of all friction laws.
 
-    num_states: ClassVar[int] = 0
+    Attributes:
+        num_states: number of internal states per clearance joint (class constant).
+    """
+
+    num_states: ClassVar[int]
 
     def initial_state(self) -> Float[Array, " num_states"]:
         """Internal state at the start of a simulation (zeros)."""
@@ -35,6 +42,7 @@ class AbstractFrictionLaw(eqx.Module):
     ) -> Float[Array, ""]:
         """Friction force on the journal along t, N (sign opposite to ``slip_velocity``)."""
 
+    @abc.abstractmethod
     def state_derivative(
         self,
         slip_velocity: Float[Array, ""],
@@ -42,9 +50,9 @@ class AbstractFrictionLaw(eqx.Module):
         state: Float[Array, " num_states"],
         smoothing: Smoothing,
     ) -> Float[Array, " num_states"]:
-        """Time derivative of the internal state (empty for stateless laws)."""
-        return jnp.zeros((self.num_states,))
+        """Time derivative of the internal state."""
 
+    @abc.abstractmethod
     def stiff_state_derivative(
         self,
         slip_velocity: Float[Array, ""],
@@ -55,6 +63,30 @@ class AbstractFrictionLaw(eqx.Module):
 
         Must be a part of ``state_derivative`` and must not depend on the normal force (the
         implicit solve differentiates it and skips the contact law); the rest is integrated
-        explicitly. Default: none.
+        explicitly.
         """
+
+
+class AbstractStatelessFrictionLaw(AbstractFrictionLaw):
+    """Base of friction laws without internal state (Coulomb-type): subclasses implement ``force``."""
+
+    num_states: ClassVar[int] = 0
+
+    def state_derivative(
+        self,
+        slip_velocity: Float[Array, ""],
+        normal_force: Float[Array, ""],
+        state: Float[Array, " 0"],
+        smoothing: Smoothing,
+    ) -> Float[Array, " 0"]:
+        """Time derivative of the internal state: empty."""
+        return jnp.zeros((self.num_states,))
+
+    def stiff_state_derivative(
+        self,
+        slip_velocity: Float[Array, ""],
+        state: Float[Array, " 0"],
+        smoothing: Smoothing,
+    ) -> Float[Array, " 0"]:
+        """The stiff part of ``state_derivative``: empty."""
         return jnp.zeros((self.num_states,))

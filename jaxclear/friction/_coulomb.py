@@ -8,10 +8,10 @@ from .._core._checks import check_nonnegative, check_positive
 from .._core._smooth import smooth_ramp
 from ..contact._base import Smoothing, _array
 from ..contact._hertz import _optional_array
-from ._base import AbstractFrictionLaw
+from ._base import AbstractStatelessFrictionLaw
 
 
-class Coulomb(AbstractFrictionLaw):
+class Coulomb(AbstractStatelessFrictionLaw):
     """Regularised Coulomb friction ``F_T = −μ F_N tanh(v_T/v_ε)`` [lit].
 
     Attributes:
@@ -61,7 +61,7 @@ class Coulomb(AbstractFrictionLaw):
         return -self.friction_coefficient * normal_force * jnp.tanh(slip_velocity / tolerance)
 
 
-class ModifiedCoulomb(AbstractFrictionLaw):
+class ModifiedCoulomb(AbstractStatelessFrictionLaw):
     """Ambrósio's modified Coulomb friction ``F_T = −μ c_d(|v_T|) F_N sgn(v_T)`` [lit].
 
     The dynamic correction c_d rises linearly from 0 at ``|v_T| = v0`` to 1 at ``|v_T| = v1``.

@@ -4,10 +4,10 @@ import jax.numpy as jnp
 from jaxtyping import Array, Float
 
 from ..contact._base import Smoothing
-from ._base import AbstractFrictionLaw
+from ._base import AbstractStatelessFrictionLaw
 
 
-class NoFriction(AbstractFrictionLaw):
+class NoFriction(AbstractStatelessFrictionLaw):
     """No tangential force: ``F_T = 0``."""
 
     def force(

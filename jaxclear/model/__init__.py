@@ -3,6 +3,7 @@
 from ._body import GROUND as GROUND
 from ._body import Body as Body
 from ._clearance import ClearanceJoint as ClearanceJoint
+from ._element import AbstractStateElement as AbstractStateElement
 from ._forces import AbstractForceElement as AbstractForceElement
 from ._forces import AppliedForce as AppliedForce
 from ._forces import AppliedTorque as AppliedTorque

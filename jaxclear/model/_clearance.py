@@ -26,13 +26,14 @@ from ..contact import Hybrid
 from ..contact._base import AbstractContactLaw, ContactGeometry, Smoothing
 from ..friction import LuGre
 from ..friction._base import AbstractFrictionLaw
+from ._element import AbstractStateElement
 
 
 def _array(x):
     return jnp.asarray(x, dtype=float)
 
 
-class ClearanceJoint(eqx.Module):
+class ClearanceJoint(AbstractStateElement):
     """A revolute joint with radial clearance c = R_B − R_J.
 
     The bearing (hole, radius R_B) is on ``bearing_body`` at ``bearing_point``; the journal (pin,

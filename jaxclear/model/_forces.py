@@ -2,10 +2,11 @@
 
 A force element contributes a generalised force vector Q (size of q). Elements with internal
 states declare ``num_states`` and give their time derivatives; those states live in the
-integrator's state vector. Everything the equations of motion call on an element is declared on
-``AbstractForceElement`` with a default, so a new element overrides only what it uses. Clearance
-joints are not force elements of this kind: they are data (``ClearanceJoint``) whose contact
-physics is computed with the equations of motion (``_clearance.py`` of the next stage).
+integrator's state vector. Everything the equations of motion call on a force element is declared
+on ``AbstractForceElement`` with a default, so a new element (the user's extension point) overrides
+only what it uses. Force elements and clearance joints share the base ``AbstractStateElement``
+(name, bodies, number of internal states); a clearance joint is data (``ClearanceJoint``) whose
+contact physics is computed with the equations of motion (``_clearance.py`` of the next stage).
 """
 
 import abc
@@ -17,6 +18,7 @@ from jaxtyping import Array, Float
 
 from .._core._checks import check_finite, check_nonnegative, check_shape
 from .._core._geometry import dot2, point_force_to_generalized, point_position, point_velocity
+from ._element import AbstractStateElement
 
 
 def _array(x):
@@ -26,23 +28,16 @@ def _array(x):
 Index = Callable[[str], "int | None"]
 
 
-class AbstractForceElement(eqx.Module):
+class AbstractForceElement(AbstractStateElement):
     """Base of force elements. Subclass and implement ``bodies`` and ``generalized_force``.
 
     The other hooks have defaults: no internal states, no potential energy, no work shared
     between the force and the state rates.
     """
 
-    name: eqx.AbstractVar[str]
-
-    @property
-    @abc.abstractmethod
-    def bodies(self) -> tuple[str, ...]:
-        """Names of the bodies the element acts on (``"ground"`` allowed); checked by ``Mechanism``."""
-
     @property
     def num_states(self) -> int:
-        """Number of internal states this element adds to the integrator state (static)."""
+        """Number of internal states this element adds to the integrator state (static; default 0)."""
         return 0
 
     def initial_state(self, index: Index, q, qd) -> Float[Array, " s"]:

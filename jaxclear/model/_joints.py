@@ -143,9 +143,9 @@ class AbstractDriver(eqx.Module):
         return (self.body, self.relative_to)
 
     @property
+    @abc.abstractmethod
     def constant_speed(self) -> Float[Array, ""] | None:
         """Constant angular speed ω, rad/s, or ``None`` if the prescribed speed varies."""
-        return None
 
     def constraint(self, index, q, t):
         _, phi = body_coordinates(q, index(self.body))
@@ -196,3 +196,8 @@ class FunctionDriver(AbstractDriver):
 
     def angle(self, t):
         return jnp.asarray(self.function(t, self.parameters), dtype=float)
+
+    @property
+    def constant_speed(self) -> None:
+        """``None``: the prescribed speed of a function of time is not known to be constant."""
+        return None

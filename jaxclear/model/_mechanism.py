@@ -11,6 +11,7 @@ from .._core._checks import check_finite, check_shape
 from .._core._errors import ModelError
 from ._body import GROUND, Body
 from ._clearance import ClearanceJoint
+from ._element import AbstractStateElement
 from ._forces import AbstractForceElement
 from ._joints import AbstractDriver, AbstractJoint
 
@@ -136,7 +137,7 @@ class Mechanism(eqx.Module):
         return sum(c.num_equations for c in self.constraint_elements)
 
     @property
-    def force_elements(self) -> tuple[AbstractForceElement | ClearanceJoint, ...]:
+    def force_elements(self) -> tuple[AbstractStateElement, ...]:
         """Force elements, then clearance joints: the order of the internal states in y."""
         return tuple(self.forces) + tuple(self.clearance_joints)
 

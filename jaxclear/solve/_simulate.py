@@ -17,11 +17,10 @@ from .._core._errors import InputCheck, ModelError, SimulationError
 from .._core._executable_cache import stored_jit
 from .._core._smooth import safe_norm
 from ..dynamics._assembly import assemble_state, check_assembly
-from ..dynamics._batched import groups
 from ..dynamics._equations import (
     clearance_outputs,
     evaluate,
-    generalized_forces,
+    forces_and_caches,
     implicit_stage,
     memory_decay_rates,
     memory_offset_shift,
@@ -29,6 +28,7 @@ from ..dynamics._equations import (
     vector_field,
 )
 from ..dynamics._equations import initial_state as dynamics_initial_state
+from ..dynamics._groups import evaluation_groups
 from ._extremes import ExtremesTracking, Observation
 from ._solver import SolverConfig, solver_config
 from ._trajectory import Trajectory
@@ -114,16 +114,13 @@ def _observe(t, y, mechanism) -> Observation:
     internal-state rates or a second contact evaluation.
     """
     q, qd, states = mechanism.split_state(y)
-    caches = {}
-    forces = generalized_forces(mechanism, t, q, qd, states, caches)
+    forces, caches = forces_and_caches(mechanism, t, q, qd, states)
     qdd, lam, phi, _ = solve_accelerations(mechanism, t, q, qd, forces)
     normal_force, penetration = {}, {}
-    for k, group in enumerate(groups(mechanism)):
-        kinematics, contact = caches[k]  # stacked over the group's joints if it has several
-        for i, joint in enumerate(group):
-            pick = (lambda x, i=i: x[i]) if len(group) > 1 else (lambda x: x)
-            normal_force[joint.name] = pick(contact.normal_force)
-            penetration[joint.name] = pick(kinematics.penetration)
+    for group, cache in zip(evaluation_groups(mechanism), caches):
+        for name, (kinematics, contact) in group.contacts(cache).items():
+            normal_force[name] = contact.normal_force
+            penetration[name] = kinematics.penetration
     if mechanism.driver is not None:
         torque = -lam[mechanism.constraint_slices[mechanism.driver.name]][0]
     else:
