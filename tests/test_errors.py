@@ -83,6 +83,10 @@ def test_bad_time_arguments():
         jaxclear.simulate(mech, -1.0, solver="fast")
     with pytest.raises(ValueError, match=r"ts must be increasing and inside \[t0, t1\]"):
         jaxclear.simulate(mech, T1, ts=np.array([0.0, 2 * T1]), solver="fast")
+    # one point was silently the start state alone (issue 28, item 10)
+    for n in (0, 1):
+        with pytest.raises(ValueError, match=r"num_points must be at least 2.*ts=\[t1\]"):
+            jaxclear.simulate(mech, T1, num_points=n, solver="fast")
 
 
 # --------------------------------------------------------------------------------------------

@@ -97,8 +97,14 @@ def test_unknown_name_suggests_close_match(mechanism):
         jaxclear.ModelError, match=r"unknown parameter 'B.clearence'; did you mean 'B.clearance'"
     ):
         jaxclear.with_parameters(mechanism, {"B.clearence": 1e-4})
-    with pytest.raises(jaxclear.ModelError, match="unknown parameter 'O.clearance'"):
+    # an ideal joint: said so, with how to give it a clearance (was "unknown parameter", issue 28)
+    with pytest.raises(
+        jaxclear.ModelError,
+        match=r"joint 'O' is an ideal revolute joint and has no clearance.*clearance_joints='A,B,O'",
+    ):
         jaxclear.get_parameter(mechanism, "O.clearance")
+    with pytest.raises(jaxclear.ModelError, match="unknown parameter 'C.clearance'"):
+        jaxclear.get_parameter(mechanism, "C.clearance")
 
 
 def test_info_units_and_domains(mechanism):

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
 from .._core._errors import ModelError
-from ._joints import ConstantSpeedDriver
+from ._joints import ConstantSpeedDriver, RevoluteJoint
 from ._mechanism import Mechanism
 
 RPM_TO_RAD_PER_S = math.pi / 30.0
@@ -341,7 +341,18 @@ def _entries(mechanism: Mechanism) -> dict[str, _Entry]:
     return {e.info.name: e for e in entries}
 
 
-def _unknown(name: str, entries: Mapping[str, _Entry]) -> ModelError:
+def _unknown(name: str, entries: Mapping[str, _Entry], mechanism: Mechanism) -> ModelError:
+    joint, _, field = name.partition(".")
+    ideal = {j.name for j in mechanism.joints if isinstance(j, RevoluteJoint)}
+    if field and joint in ideal and f"{joint}.{field}" not in entries:
+        with_clearance = [j.name for j in mechanism.clearance_joints]
+        named = ",".join([*with_clearance, joint])
+        return ModelError(
+            f"{name!r}: joint {joint!r} is an ideal revolute joint and has no clearance, so it has "
+            f"no {field!r}; give it one first: clearance_joints={named!r} in "
+            f"jaxclear.mechanisms.slider_crank or four_bar, --clearance-joints {named} on the "
+            f'command line, or joints = "{named}" under [clearance] in the config file'
+        )
     close = difflib.get_close_matches(name, list(entries), n=3)
     hint = f"did you mean {' or '.join(map(repr, close))}? " if close else ""
     return ModelError(
@@ -353,7 +364,7 @@ def _unknown(name: str, entries: Mapping[str, _Entry]) -> ModelError:
 def _entry(mechanism: Mechanism, name: str) -> _Entry:
     entries = _entries(mechanism)
     if name not in entries:
-        raise _unknown(name, entries)
+        raise _unknown(name, entries, mechanism)
     return entries[name]
 
 
@@ -396,7 +407,7 @@ def with_parameters(mechanism: Mechanism, values: Mapping[str, ArrayLike]) -> Me
     entries = _entries(mechanism)
     unknown = [n for n in values if n not in entries]
     if unknown:
-        raise _unknown(unknown[0], entries)
+        raise _unknown(unknown[0], entries, mechanism)
     for name, value in values.items():
         mechanism = entries[name].set(mechanism, jnp.asarray(value, dtype=float))
     return mechanism

@@ -283,8 +283,11 @@ def _time_grid(t0, t1, ts, num_points):
     """Output times: checked NumPy values for concrete t0, t1, ts; a traced grid otherwise."""
     if ts is None:
         n = 201 if num_points is None else int(num_points)
-        if n < 1:
-            raise ValueError(f"num_points must be a positive integer, got {num_points}.")
+        if n < 2:
+            raise ValueError(
+                f"num_points must be at least 2 (the grid holds t0 and t1), got {num_points}; for "
+                "the state at t1 alone pass ts=[t1] (or read Trajectory.y_final)."
+            )
         if not (_is_concrete_number(t0) and _is_concrete_number(t1)):
             return jnp.linspace(t0, t1, n)
         ts = np.linspace(t0, t1, n)

@@ -318,7 +318,7 @@ class MechanismFlow(eqx.Module):
             self.mechanism,
             t_b,
             t0=t_a,
-            num_points=1,
+            ts=jnp.reshape(t_b, (1,)),  # only the end state is used
             solver=self.config,
             y0=y,
             adjoint="forward",
