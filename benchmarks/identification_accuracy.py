@@ -7,10 +7,11 @@ The data (tests/reference/data/, made by tests/reference/identification_data.py 
 event-located SciPy model; noise 1 µm on slider_x and 2 % of the RMS on slider_a and crank_torque)
 are fitted by ``jaxclear.identify`` at its defaults (noise estimated from the data, scan of the
 bounds, Levenberg–Marquardt over growing windows, ``jaxclear.gradient_solver``), starting every
-clearance from 0.5 mm within [0.1, 0.8] mm. Prints, per case and clearance: the estimate, its 1σ,
-the error against the truth (relative and in σ), the part of the record fitted, the loss (1 = noise
-level) and the wall time of the fit including compilation (each case in this process; cases of the
-same mechanism topology share a compilation, so the first is the dearest).
+clearance from 0.5 mm within [0.1, 0.8] mm (``jaxclear.FitSettings()``). Prints, per case and
+clearance: the estimate, its standard deviation (1σ), the error against the truth (relative and in
+σ), the part of the record fitted, the loss (1 = noise level), the wall time of the fit including
+compilation (each case in this process; cases of the same mechanism topology share a compilation,
+so the first is the dearest), and the reason when a fit is not a success (``result.success``).
 """
 
 import argparse
@@ -60,6 +61,8 @@ def main():
             f"{name}: fitted up to {result.window_end * 1e3:.4g} ms of {data.t[-1] * 1e3:.4g} ms, "
             f"loss {result.loss:.3f}, {result.iterations} iterations, {elapsed:.1f} s"
         )
+        if not result.success:  # the estimates below are then no fit (exit 3 of jaxclear fit)
+            print(f"  not a fit: {result.reason}")
         for key, e in result.parameters.items():
             true = truth[key.split(".")[0]]
             err = e.value - true

@@ -53,6 +53,7 @@ from .solve._startup import wall_start as wall_start  # noqa: E402
 from .solve._trajectory import Trajectory as Trajectory  # noqa: E402
 from .studies import EnsembleSettings as EnsembleSettings  # noqa: E402
 from .studies import FitParameter as FitParameter  # noqa: E402
+from .studies import FitSettings as FitSettings  # noqa: E402
 from .studies import identify as identify  # noqa: E402
 from .studies import montecarlo as montecarlo  # noqa: E402
 from .studies import optimize as optimize  # noqa: E402

@@ -11,5 +11,5 @@ from .studies._ensemble import inadmissible_values as inadmissible_values
 from .studies._ensemble_result import MANIFEST as MANIFEST
 from .studies._ensemble_result import ResumeWarning as ResumeWarning
 from .studies._ensemble_result import read_table as read_table
-from .studies._identify import DEFAULT_HORIZONS as DEFAULT_HORIZONS
+from .studies._identify import NOISE_LEVEL_LOSS as NOISE_LEVEL_LOSS
 from .studies._identify import check_identification as check_identification

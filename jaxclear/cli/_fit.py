@@ -12,16 +12,16 @@ import numpy as np
 
 import jaxclear
 
-from ..internal import DEFAULT_HORIZONS, check_identification
+from ..internal import NOISE_LEVEL_LOSS, check_identification
 from ..io import CSV_FORMAT, atomic_write, package_versions, write_json
-from ..studies import identify
+from ..studies import FitSettings, identify
 from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
 from ._config import resolve_settings
 from ._mechanism_config import build_mechanism
 from ._prepare import grid, prepare_output, solver_for
 from ._settings import add_setting_arguments, config_reference
 
-DESCRIPTION = """\
+DESCRIPTION = f"""\
 Fit parameters of a mechanism (clearances, restitution, friction, stiffness, masses, ...) to a
 measured response in DATA.csv by gradient-based weighted least squares, and write fit.json,
 fit.csv, fit.png and loss.png into --out DIR.
@@ -37,9 +37,15 @@ Each signal is weighted by its noise level: estimated from the data (third diffe
 impacts) or given with --noise. The fit scans the bounds (vectorised solves), then refines by
 Levenberg-Marquardt with forward-mode derivatives through the solve over growing windows of the
 record, and stops extending the window where the model no longer follows the data (a chaotic
-impact sequence): fit.json says up to which time the data were fitted. Uncertainties are
-Gauss-Newton standard deviations (scaled by the reduced chi-square when above 1) plus the
-estimate's drift between the last two windows."""
+impact sequence): fit.json says up to which time the data were fitted. Uncertainties are one
+standard deviation (1 sigma): Gauss-Newton (scaled by the reduced chi-square when above 1) plus the
+estimate's drift between the last two windows.
+
+A fit is a success only when every estimate and standard deviation is finite, a window of the
+record told the scanned points apart, and the loss reaches the noise level (1 = noise level; at
+most {NOISE_LEVEL_LOSS:g} for the usual hundreds of residuals). Otherwise the command still writes
+its files, fit.json says "success": false and why ("reason"), and it prints the reason and exits
+with code 3."""
 
 EPILOG = f"""\
 parameters (--fit): comma-separated NAME[=INITIAL[:LOWER:UPPER]]; NAME as in
@@ -52,12 +58,14 @@ example (5000 rpm, clearance joint B with the pin on the rod, gravity on):
       --friction modified-coulomb --friction-coefficient 0.01 --gravity --rpm 5000 \\
       --fit B.clearance=5e-4:1e-4:8e-4 --out fit-B
 
-outputs in --out DIR: fit.json (parameters with value, std, initial, lower, upper, unit; noise
-levels; loss history; iterations; time; convergence status), fit.csv (t and, per signal,
-<name>_measured, <name>_fitted, <name>_residual), fit.png (measured and fitted signals),
-loss.png (loss per iteration).
+outputs in --out DIR: fit.json (success and reason; parameters with value, std (1 sigma),
+initial, lower, upper, unit; noise levels; loss history; iterations; time; convergence status),
+fit.csv (t and, per signal, <name>_measured, <name>_fitted, <name>_residual), fit.png (measured
+and fitted signals, estimates +- 1 sigma), loss.png (loss per iteration).
 
-exit codes: 0 success, 1 the fit failed, 2 bad input (bad data, unknown parameter or column, ...).
+exit codes: 0 success, 1 a solve failed or the results could not be written, 2 bad input (bad
+data, unknown parameter or column, ...), 3 the fit did not reach the noise level (files written,
+fit.json says why).
 
 config file (TOML; every key optional; command-line options override it):
 {config_reference()}
@@ -66,6 +74,10 @@ config file (TOML; every key optional; command-line options override it):
 FIT_JSON = "fit.json"
 FIT_CSV = "fit.csv"
 FIT_FORMAT = 1
+EXIT_NOT_FITTED = 3
+"""Exit code of a fit that is not a success (``IdentificationResult.success``): its files are
+written, and fit.json says why."""
+DEFAULTS = FitSettings()
 
 
 def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
@@ -113,16 +125,16 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
     fit.add_argument(
         "--max-iterations",
         type=int,
-        default=20,
+        default=DEFAULTS.max_iterations,
         metavar="N",
-        help="Levenberg-Marquardt iterations per window (default 20)",
+        help=f"Levenberg-Marquardt iterations per window (default {DEFAULTS.max_iterations})",
     )
     fit.add_argument(
         "--horizons",
         default=None,
         metavar="F,...",
         help="growing windows as fractions of the record, ending with 1 "
-        f"(default {','.join(f'{h:g}' for h in DEFAULT_HORIZONS)})",
+        f"(default {','.join(f'{h:g}' for h in DEFAULTS.horizons)})",
     )
     add_setting_arguments(fit)
     fit.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -188,7 +200,7 @@ def _noise(texts: list[str]) -> dict[str, float]:
 
 def _horizons(text: str | None) -> tuple[float, ...]:
     if text is None:
-        return DEFAULT_HORIZONS
+        return DEFAULTS.horizons
     try:
         return tuple(float(v) for v in text.split(","))
     except ValueError:
@@ -198,7 +210,16 @@ def _horizons(text: str | None) -> tuple[float, ...]:
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
-    """Run ``jaxclear fit``; returns 0, raises ``UsageError`` (exit 2) or ``RunError`` (exit 1)."""
+    """Run ``jaxclear fit``.
+
+    Returns:
+        0 for a fit that reaches the noise level, ``EXIT_NOT_FITTED`` (3) for one that does not
+        (its files are written, fit.json says why).
+
+    Raises:
+        UsageError: bad input (exit 2), before anything is solved or written.
+        RunError: a failed solve, or results that cannot be written (exit 1).
+    """
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
@@ -212,7 +233,14 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"--scan-points {args.scan_points}: give 0 or more")
     if args.max_iterations < 1:
         raise UsageError(f"--max-iterations {args.max_iterations}: give 1 or more")
-    horizons = _horizons(args.horizons)
+    try:
+        fit_settings = FitSettings(
+            horizons=_horizons(args.horizons),
+            scan_points=args.scan_points,
+            max_iterations=args.max_iterations,
+        )
+    except jaxclear.ModelError as e:
+        raise UsageError(f"--horizons {args.horizons!r}: {one_line(e)}") from None
 
     mechanism = build_mechanism(settings)
     if config["simulation"]["start"] == "wall" and mechanism.clearance_joints:
@@ -234,7 +262,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
                 f"[0, {t1:.6g}] s ({config['simulation']['revolutions']:g} revolutions at "
                 f"{config['mechanism']['rpm']:g} rpm); raise --revolutions or cut the data"
             )
-        check_identification(mechanism, data, parameters, 0.0, None, horizons)
+        check_identification(mechanism, data, parameters, 0.0, None)
     except jaxclear.DataError as e:
         raise UsageError(one_line(e)) from None
     except jaxclear.AssemblyError as e:
@@ -264,9 +292,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
             data,
             parameters,
             solver=solver,
-            horizons=horizons,
-            scan_points=args.scan_points,
-            max_iterations=args.max_iterations,
+            settings=fit_settings,
             progress=progress,
         )
     except jaxclear.ModelError as e:
@@ -300,14 +326,22 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise RunError(
             f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
         ) from None
+    status = result.status
+    if not result.success:  # first, and even when --quiet: the estimates below are not a fit
+        print(f"{PROG}: not a fit (exit {EXIT_NOT_FITTED}): {result.reason}", file=sys.stderr)
+        status = status.split(f"{result.reason}; ", 1)[-1]  # the reason once is enough
+    unreliable = "" if result.success else ", unreliable: not a fit"
     for name, e in result.parameters.items():
-        say(f"{name} = {e.value:.6g} ± {e.std:.2g} {e.unit} (1σ; started {e.initial:.6g})")
+        say(
+            f"{name} = {e.value:.6g} ± {e.std:.2g} {e.unit} "
+            f"(1σ{unreliable}; started {e.initial:.6g})"
+        )
     say(
         f"loss {result.loss:.4g} (1 = noise level) over {result.window_end:.6g} s, "
-        f"{result.iterations} iterations, {result.time:.1f} s; {result.status}"
+        f"{result.iterations} iterations, {result.time:.1f} s; {status}"
     )
     say(f"wrote {', '.join(info['files'])} to {out_dir}/")
-    return 0
+    return 0 if result.success else EXIT_NOT_FITTED
 
 
 def _write_fit_csv(path: str, result) -> None:

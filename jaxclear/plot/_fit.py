@@ -14,7 +14,8 @@ def plot_fit(result) -> Figure:
     """Measured and fitted signals of an identification (``jaxclear.identify``), one panel each.
 
     The measured points are dots, the fitted model a line; the shaded span is the part of the
-    record the estimate was fitted to (``result.window_end``); the title gives the estimates.
+    record the estimate was fitted to (``result.window_end``); the title gives the estimates
+    ± one standard deviation (1σ), and says so when the fit is not a success (``result.success``).
     """
     names = list(result.measured)
     fig = Figure(figsize=(7.0, 2.2 * len(names) + 0.6), layout="constrained")
@@ -29,9 +30,13 @@ def plot_fit(result) -> Figure:
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time [ms] (shaded: fitted span)")
     estimates = ", ".join(
-        f"{n} = {e.value:.6g} ± {2 * e.std:.2g} {e.unit} (2σ)" for n, e in result.parameters.items()
+        f"{n} = {e.value:.6g} ± {e.std:.2g} {e.unit} (1σ)" for n, e in result.parameters.items()
     )
-    fig.suptitle(estimates, fontsize=9)
+    if result.success:
+        fig.suptitle(estimates, fontsize=9)
+    else:
+        note = "not a fit (see its reason): the estimates and their ± are unreliable"
+        fig.suptitle(f"{estimates}\n{note}", fontsize=9, color="C3")
     return fig
 
 

@@ -14,6 +14,7 @@ from ._engine import EnsembleSettings as EnsembleSettings
 from ._ensemble import run_ensemble as run_ensemble
 from ._ensemble_result import EnsembleResult as EnsembleResult
 from ._identify import Estimate as Estimate
+from ._identify import FitSettings as FitSettings
 from ._identify import IdentificationResult as IdentificationResult
 from ._identify import identify as identify
 from ._iso286 import fit_clearance as fit_clearance
