@@ -244,6 +244,11 @@ BAD_MONTECARLO = {
         [],
         "unknown parameter 'C.clearance'",
     ),
+    "joint without clearance": (
+        "[montecarlo.A]\nclearance = 3e-4\n",
+        [],
+        "joint 'A' is an ideal revolute joint and has no clearance",
+    ),
     "given twice": (
         '[montecarlo]\n"B.clearance" = 3e-4\n[montecarlo.B]\nclearance = 4e-4\n',
         [],
@@ -295,6 +300,10 @@ BAD_SWEEP = {
     "not a number": (["--values", "1e-4", "big"], "give numbers"),
     "negative sections": (["--values", "1e-4", "--sections", "-1"], "--sections -1"),
     "empty item": (["--values", "1e-4,,2e-4"], "an empty item between commas"),
+    "joint without clearance": (
+        ["--param", "A.clearance", "--values", "1e-4"],
+        "joint 'A' is an ideal revolute joint and has no clearance",
+    ),
     "range of one value": (["--range", "1e-4", "2e-4", "1"], "N = 1 gives START alone"),
     "negative clearance": (
         ["--values=3e-4,-1e-5"],

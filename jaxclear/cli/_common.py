@@ -12,6 +12,8 @@ from pathlib import Path
 PROG = "jaxclear"
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
+EXIT_NOT_FITTED = 3
+"""``jaxclear fit``: the fit did not reach the noise level (its files are written and say why)."""
 
 
 class UsageError(Exception):

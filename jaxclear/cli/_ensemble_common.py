@@ -10,7 +10,6 @@ import argparse
 import csv
 import dataclasses
 import os
-import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -35,6 +34,7 @@ from ._common import (
     one_line,
 )
 from ._config import Settings, resolve_settings
+from ._folders import ENSEMBLE_TABLES, claim_output
 from ._mechanism_config import build_mechanism
 from ._prepare import grid, kept_start, prepare_output, solver_for
 
@@ -66,7 +66,7 @@ def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-progress",
         action="store_true",
-        help="no progress bar (it is shown only on a terminal anyway)",
+        help="no progress (a bar on a terminal, a line every 5 s in a log file or pipe)",
     )
     parser.add_argument(
         "--quiet", "-q", action="store_true", help="print nothing but errors (no progress bar)"
@@ -262,6 +262,7 @@ def run_engine(
             written.
     """
     settings = prepared.settings
+    claim_output(settings, ENSEMBLE_TABLES[table_name], say)  # may --out take these results?
     out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
     devices = local_devices(args.devices)
     per = len(devices)
@@ -273,7 +274,7 @@ def run_engine(
             f"started before {DEVICE_COUNT_FLAG} was set, or XLA_FLAGS sets fewer)"
         )
     quiet = args.quiet
-    progress = not (quiet or args.no_progress) and sys.stderr.isatty()
+    progress = not (quiet or args.no_progress)  # a bar on a terminal, timed lines in a log
     engine = EnsembleSettings(
         chunk_size=chunk, devices=devices, out=out_dir, table_name=table_name, progress=progress
     )

@@ -15,10 +15,18 @@ import jaxclear
 from ..internal import NOISE_LEVEL_LOSS, check_identification
 from ..io import CSV_FORMAT, atomic_write, package_versions, write_json
 from ..studies import FitSettings, identify
-from ._common import PROG, RunError, UsageError, apply_fast_compile, one_line
+from ._common import (
+    EXIT_NOT_FITTED,
+    PROG,
+    RunError,
+    UsageError,
+    apply_fast_compile,
+    one_line,
+)
 from ._config import resolve_settings
+from ._folders import StagedOutput, claim_output
 from ._mechanism_config import build_mechanism
-from ._prepare import grid, prepare_output, solver_for
+from ._prepare import grid, solver_for
 from ._settings import add_setting_arguments, config_reference
 
 DESCRIPTION = f"""\
@@ -74,9 +82,6 @@ config file (TOML; every key optional; command-line options override it):
 FIT_JSON = "fit.json"
 FIT_CSV = "fit.csv"
 FIT_FORMAT = 1
-EXIT_NOT_FITTED = 3
-"""Exit code of a fit that is not a success (``IdentificationResult.success``): its files are
-written, and fit.json says why."""
 DEFAULTS = FitSettings()
 
 
@@ -219,7 +224,19 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     Raises:
         UsageError: bad input (exit 2), before anything is solved or written.
         RunError: a failed solve, or results that cannot be written (exit 1).
+
+    The files are written into a staging folder beside ``--out`` and moved into place when
+    complete (``_folders.StagedOutput``): a fit that stops early leaves ``--out`` as it was.
     """
+    staged: list[StagedOutput] = []
+    try:
+        return _fit(args, argv, staged)
+    finally:
+        for s in staged:
+            s.discard()  # nothing left after publish
+
+
+def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) -> int:
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
@@ -269,13 +286,15 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
     except jaxclear.ModelError as e:
         raise UsageError(one_line(e)) from None
-    out_dir = prepare_output(settings)  # all input checked
 
     user_solver = settings.sources.get(("solver", "method"), "default") != "default"
     solver = solver_for(settings, mechanism) if user_solver else None
     quiet = args.quiet
     say = (lambda *a, **k: None) if quiet else print
-    progress = not (quiet or args.no_progress) and sys.stderr.isatty()
+    out_dir = claim_output(settings, "fit", say)  # all input checked: may it take our results?
+    staged.append(StagedOutput(out_dir, settings.source("output", "directory")))
+    stage = staged[0].stage
+    progress = not (quiet or args.no_progress)  # a bar on a terminal, timed lines in a log
     say(
         f"jaxclear {jaxclear.__version__}: fitting {', '.join(parameters)} to "
         f"{', '.join(data.signals)} of {args.data} ({data.t.shape[0]} instants, "
@@ -313,15 +332,16 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         "files": [FIT_JSON, FIT_CSV, "fit.png", "loss.png"],
     }
     try:
-        write_json(out_dir / FIT_JSON, info)
-        atomic_write(out_dir / FIT_CSV, lambda tmp: _write_fit_csv(tmp, result))
+        write_json(stage / FIT_JSON, info)
+        atomic_write(stage / FIT_CSV, lambda tmp: _write_fit_csv(tmp, result))
         if config["output"]["plots"]:
             from ..plot import save_fit_plots
 
-            save_fit_plots(result, out_dir)
+            save_fit_plots(result, stage)
         else:
             info["files"] = [FIT_JSON, FIT_CSV]
-            write_json(out_dir / FIT_JSON, info)
+            write_json(stage / FIT_JSON, info)
+        staged[0].publish()
     except OSError as e:
         raise RunError(
             f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"

@@ -39,8 +39,9 @@ from ._common import (
     one_line,
 )
 from ._config import Settings, resolve_settings
+from ._folders import StagedOutput, claim_output
 from ._mechanism_config import build_mechanism
-from ._prepare import grid, kept_start, prepare_output, solver_for
+from ._prepare import grid, kept_start, solver_for
 from ._settings import (
     add_setting_arguments,
     config_reference,
@@ -229,7 +230,20 @@ def _figures(traj, statistics: dict) -> str:
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
-    """Run ``jaxclear run``; returns 0, raises ``UsageError`` (exit 2) or ``RunError`` (exit 1)."""
+    """Run ``jaxclear run``; returns 0, raises ``UsageError`` (exit 2) or ``RunError`` (exit 1).
+
+    The results are written into a staging folder beside ``--out`` and moved into place when
+    complete (``_folders.StagedOutput``); a command that stops early leaves ``--out`` as it was.
+    """
+    staged: list[StagedOutput] = []
+    try:
+        return _run(args, argv, staged)
+    finally:
+        for s in staged:
+            s.discard()  # nothing left after publish; a run that stopped early leaves no trace
+
+
+def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) -> int:
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
@@ -241,10 +255,15 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     ideal = ideal_mechanism(mechanism)  # clearance joints made ideal: the plots' reference
     names = [j.name for j in mechanism.clearance_joints]
     start = config["simulation"]["start"]
+    quiet = args.quiet
+    progress = not (quiet or args.no_progress) and sys.stderr.isatty()
+    say = (lambda *a, **k: None) if quiet else print
     t1, num_points = grid(settings)
     try:
         jaxclear.assemble(ideal)  # a mechanism that cannot assemble is bad input: exit 2
-        out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
+        out_dir = claim_output(settings, "run", say)  # all input checked: may it take our results?
+        staged.append(StagedOutput(out_dir, settings.source("output", "directory")))
+        stage = staged[0].stage
         if names and start == "wall":
             mechanism = wall_start(
                 mechanism, num_points=num_points
@@ -259,9 +278,6 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     solver = solver_for(settings, mechanism)
     t_keep = kept_start(settings)
 
-    quiet = args.quiet
-    progress = not (quiet or args.no_progress) and sys.stderr.isatty()
-    say = (lambda *a, **k: None) if quiet else print
     rpm, revs = config["mechanism"]["rpm"], config["simulation"]["revolutions"]
     skip = config["simulation"]["skip_revolutions"]
     say(
@@ -326,7 +342,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     )
     fraction = config["clearance"]["continuous_fraction"]
     if not bool(traj.succeeded):
-        return _failed(traj, solver, info, out_dir, fraction, say)
+        return _failed(traj, solver, info, staged[0], fraction, say)
 
     kept = window(traj, t_keep)
     statistics = run_statistics(traj)
@@ -340,7 +356,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         if config["output"]["plots"]:
             from ..plot import save_standard_plots
 
-            files = [p.name for p in save_standard_plots(kept, out_dir, reference=reference)]
+            files = [p.name for p in save_standard_plots(kept, stage, reference=reference)]
         modes = (
             _contact_modes(traj, kept, fraction, 60.0 / rpm, t_keep)
             if names
@@ -348,14 +364,15 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         )
         if modes.get("events") is not None:
             events = modes.pop("events")
-            files.append(write_modes_csv(out_dir / MODES_CSV, events).name)
+            files.append(write_modes_csv(stage / MODES_CSV, events).name)
             if config["output"]["plots"]:
                 from ..plot import save_mode_timeline
 
-                files.append(save_mode_timeline(traj, out_dir, events=events, start=t_keep).name)
+                files.append(save_mode_timeline(traj, stage, events=events, start=t_keep).name)
         modes.pop("events", None)
         info.update(statistics=statistics, **modes, files=files)
-        paths = write_results(out_dir, traj, info, fraction)
+        paths = write_results(stage, traj, info, fraction)
+        staged[0].publish()
     except OSError as e:
         raise RunError(
             f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
@@ -397,7 +414,7 @@ def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) ->
     }
 
 
-def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> int:
+def _failed(traj, solver, info: dict, staged: StagedOutput, fraction: float, say) -> int:
     """A failed solve: the finite instants reached are written, no plots, run.json says why; exit 1."""
     # the message simulate(throw=True) would raise, for a trajectory that is kept
     from ..solve import failure_error
@@ -407,16 +424,18 @@ def _failed(traj, solver, info: dict, out_dir: Path, fraction: float, say) -> in
     info.update(
         status="failed", error=one_line(failure), statistics={}, contact_mode_shares={}, files=[]
     )
+    out_dir = staged.out
     try:
         if reached.t.shape[0] >= 1:
-            write_results(out_dir, reached, info, fraction)
+            write_results(staged.stage, reached, info, fraction)
             where = (
                 f"Partial results up to t = {float(reached.t[-1]):.6g} s (no plots) are in {out_dir}/ "
                 "(run.json status 'failed')."
             )
         else:
-            write_json(out_dir / RUN_JSON_NAME, {**info, "files": [RUN_JSON_NAME]})
+            write_json(staged.stage / RUN_JSON_NAME, {**info, "files": [RUN_JSON_NAME]})
             where = f"No instant was reached; {out_dir}/run.json has status 'failed'."
+        staged.publish()
     except OSError as e:
         raise RunError(
             f"{one_line(failure)} Also cannot write to {str(out_dir)!r}: {e.strerror or e}."

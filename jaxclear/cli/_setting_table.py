@@ -656,4 +656,14 @@ SETTINGS: tuple[Setting, ...] = (
         "--out",
     ),
     Setting("output", "plots", bool, True, "", "write the PNG plots", "--plots"),
+    Setting(
+        "output",
+        "force",
+        bool,
+        False,
+        "",
+        "replace an output folder that holds other results (another command's, another "
+        "configuration's, or files without their manifest): it is moved aside first, not deleted",
+        "--force",
+    ),
 )

@@ -1,0 +1,182 @@
+"""Output folders: each holds one command's results, complete, or the earlier ones untouched.
+
+- ``run`` and ``fit`` write into a fresh staging folder beside ``--out`` (``.NAME.partial-XXXX``)
+  and move it into place at the end (``StagedOutput.publish``): an interrupted or failed write
+  leaves the earlier folder as it was, never a mix of two runs.
+- ``montecarlo`` and ``sweep`` write in place, each file replaced atomically after every chunk,
+  so that a killed run resumes from what it finished (the engine's manifest ``ensemble.json``).
+- A folder that holds another command's results, another configuration's, or result files whose
+  manifest is gone, is refused before anything is solved; ``--force`` moves it aside first
+  (``NAME.replaced-<UTC time>``, nothing is deleted).
+"""
+
+import json
+import os
+import shutil
+import tempfile
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from ..internal import MANIFEST
+from ._common import UsageError
+
+MANIFESTS = {"run.json": "run", "fit.json": "fit", "sweep.json": "sweep"}
+"""The file by which each command's folder is known (montecarlo: the engine's manifest with its
+table samples.csv)."""
+ENSEMBLE_TABLES = {"samples.csv": "montecarlo", "sweep.csv": "sweep"}
+
+
+def folder_owner(path: Path) -> str | None:
+    """Which command's results ``path`` holds: ``"run"``, ``"fit"``, ``"montecarlo"``,
+    ``"sweep"``, ``"unknown"`` (files no command's manifest accounts for), or ``None`` (no folder,
+    or an empty one)."""
+    if not path.is_dir() or not any(path.iterdir()):
+        return None
+    for name, command in MANIFESTS.items():
+        if (path / name).is_file():
+            return command
+    manifest = path / MANIFEST
+    if manifest.is_file():
+        try:
+            table = json.loads(manifest.read_text(encoding="utf-8")).get("table")
+        except (OSError, ValueError, AttributeError):
+            return "unknown"
+        return ENSEMBLE_TABLES.get(table, "unknown")
+    return "unknown"
+
+
+def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for k in sorted(set(old) | set(new)):
+            out += _differences(old.get(k), new.get(k), f"{prefix}{k}.")
+        return out
+    return [] if old == new else [prefix.rstrip(".")]
+
+
+def _configuration(config: dict) -> dict:
+    """What must match for a folder to be run again: every section but [output]."""
+    plain = json.loads(json.dumps(config, default=str))
+    plain.pop("output", None)
+    return plain
+
+
+def claim_output(settings, command: str, say=print) -> Path:
+    """Check that ``--out`` may take this command's results; move it aside under ``--force``.
+
+    Allowed without ``--force``: no folder or an empty one; the same command's folder with the same
+    configuration (``run``, ``fit``: replaced when the new results are complete); for
+    ``montecarlo`` and ``sweep`` a folder with the engine's manifest, which resumes (the engine
+    refuses another configuration, naming what changed).
+
+    Returns:
+        The output folder (not created here).
+
+    Raises:
+        UsageError: the folder holds other results (naming whose and how to proceed), or ``--out``
+            is a file.
+    """
+    text = settings.config["output"]["directory"]
+    source = settings.source("output", "directory")
+    out = Path(text)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{source} {text!r} exists and is not a folder; choose another path")
+    owner = folder_owner(out)
+    if owner is None:
+        return out
+    why = _conflict(out, owner, command, settings.config)
+    if why is None:
+        return out
+    if not settings.config["output"]["force"]:
+        raise UsageError(
+            f"{source} {text!r} holds {why}; choose another folder, or pass --force to move it "
+            "aside and start afresh"
+        )
+    aside = out.with_name(f"{out.name}.replaced-{datetime.now(UTC):%Y%m%dT%H%M%S%fZ}")
+    try:
+        out.rename(aside)
+    except OSError as e:
+        raise UsageError(
+            f"--force: cannot move {text!r} aside ({e.strerror or e}); choose another folder"
+        ) from None
+    say(f"note: {text} held {why}; moved aside to {aside}")
+    return out
+
+
+def _conflict(out: Path, owner: str, command: str, config: dict) -> str | None:
+    """Why ``out`` (holding ``owner``'s results) cannot take ``command``'s, or ``None``."""
+    if owner == "unknown":
+        return "files that no jaxclear manifest accounts for (results whose manifest is missing?)"
+    if owner != command:
+        return f"the results of 'jaxclear {owner}'"
+    if command in ("montecarlo", "sweep"):
+        return None  # the engine resumes it, or refuses another configuration
+    try:
+        old = json.loads((out / f"{command}.json").read_text(encoding="utf-8")).get("config")
+    except (OSError, ValueError, AttributeError):
+        return f"a {command}.json that cannot be read"
+    if not isinstance(old, dict):
+        return f"a {command}.json without its configuration"
+    old.pop("output", None)
+    changed = _differences(old, _configuration(config))
+    if changed:
+        return f"a {command} of another configuration (changed: {', '.join(changed[:6])})"
+    return None
+
+
+class StagedOutput:
+    """A fresh folder beside the output folder, moved into place by ``publish``.
+
+    Args:
+        out: the output folder (``claim_output``'s).
+        source: how the user named it (for messages).
+
+    Raises:
+        UsageError: the parent folder cannot be created or written.
+    """
+
+    def __init__(self, out: Path, source: str):
+        self.out = out
+        parent = out.parent if str(out.parent) else Path(".")
+        blocking = next(
+            (p for p in (parent, *parent.parents) if p.exists() and not p.is_dir()), None
+        )
+        if blocking is not None:
+            raise UsageError(
+                f"{source} {str(out)!r} is not writable (Not a directory): {str(blocking)!r} is a "
+                "file; choose a folder you can write to"
+            )
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+            self.stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=parent))
+            fd, probe = tempfile.mkstemp(prefix=".jaxclear-write-test.", dir=self.stage)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as e:
+            if getattr(self, "stage", None) is not None:
+                shutil.rmtree(self.stage, ignore_errors=True)
+            raise UsageError(
+                f"{source} {str(out)!r} is not writable ({e.strerror or e}); choose a folder you "
+                "can write to"
+            ) from None
+
+    def publish(self) -> Path:
+        """Move the staged results into place; an earlier folder there is removed only after."""
+        old = None
+        if self.out.exists():
+            old = self.out.with_name(f".{self.out.name}.old-{os.getpid()}")
+            self.out.rename(old)
+        try:
+            self.stage.rename(self.out)
+        except OSError:
+            if old is not None:
+                old.rename(self.out)  # the earlier results back, untouched
+            raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        return self.out
+
+    def discard(self) -> None:
+        """Remove the staged results (the command failed before they were complete)."""
+        shutil.rmtree(self.stage, ignore_errors=True)
