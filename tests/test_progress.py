@@ -16,6 +16,8 @@ class _Clock:
 
 
 def test_lines_in_a_log_file_every_interval(monkeypatch):
+    import ipykernel  # noqa: F401  # a Jupyter kernel's modules loaded (as by the notebook tests) is no kernel
+
     clock = _Clock()
     monkeypatch.setattr("jaxclear._core._progress.time.monotonic", clock)
     log = io.StringIO()  # not a terminal

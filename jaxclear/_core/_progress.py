@@ -89,14 +89,20 @@ class Progress:
 
 
 def _interactive(stream) -> bool:
-    """A terminal, or a Jupyter kernel (where tqdm.auto draws a widget)."""
-    if "ipykernel" in sys.modules:
-        return True
+    """A terminal, or the standard error of a Jupyter kernel (where tqdm.auto draws a widget)."""
     isatty = getattr(stream, "isatty", None)
     try:
-        return bool(isatty and isatty())
+        if isatty and isatty():
+            return True
     except ValueError:  # a closed stream
         return False
+    return stream is sys.stderr and _in_notebook()
+
+
+def _in_notebook() -> bool:
+    ipython = sys.modules.get("IPython")
+    shell = ipython.get_ipython() if ipython is not None else None
+    return type(shell).__name__ == "ZMQInteractiveShell"
 
 
 def progress_bar(on: bool, total: int, description: str) -> Progress:
