@@ -49,6 +49,7 @@ import jax.core  # jax.core.Tracer (jax imports it itself; named for type checke
 import numpy as np
 
 from ._checks import staging
+from ._error_mode import error_mode_set
 
 FORMAT = 1
 """Layout of a stored entry; part of the key."""
@@ -224,18 +225,6 @@ def _jax_cache_hits():
         jax.config.update("jax_persistent_cache_min_compile_time_secs", saved)
 
 
-@contextlib.contextmanager
-def _nan_error_mode():
-    import equinox._errors as errors  # the module global equinox reads at trace time
-
-    saved = getattr(errors, "EQX_ON_ERROR")
-    setattr(errors, "EQX_ON_ERROR", "nan")
-    try:
-        yield
-    finally:
-        setattr(errors, "EQX_ON_ERROR", saved)
-
-
 class _Entry(NamedTuple):
     compiled: Any  # jax.stages.Compiled, called with the flat list of the call's arrays
     skeleton: Any  # the output with _Slot(i) for its i-th array
@@ -327,7 +316,7 @@ class StoredJit:
         # programs have names of their own (their own keys in JAX's cache), JAX does not write
         # them to its cache, and a program JAX still served from its cache is not stored.
         flat.__name__ = f"{self._fun.__name__.strip('_')}_stored_{key[:16]}"
-        with _nan_error_mode():
+        with error_mode_set("nan"):
             lowered = jax.jit(flat).lower(leaves)
         with _jax_cache_hits() as hits:
             compiled = lowered.compile()

@@ -9,6 +9,8 @@ built or assembled, output folder that cannot be written). Errors are one line o
 import os
 from pathlib import Path
 
+from ..internal import set_error_mode
+
 PROG = "jaxclear"
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
@@ -156,11 +158,9 @@ _saved_min_compile_time: list[float] = []
 
 
 def _set_error_mode(mode: str) -> None:
-    import equinox._errors as errors  # the module global equinox reads at trace time
-
+    previous = set_error_mode(mode)
     if not _saved_error_mode:
-        _saved_error_mode.append(getattr(errors, "EQX_ON_ERROR"))
-    setattr(errors, "EQX_ON_ERROR", mode)
+        _saved_error_mode.append(previous)
 
 
 def restore_error_mode() -> None:
@@ -176,6 +176,4 @@ def restore_error_mode() -> None:
             "jax_persistent_cache_min_compile_time_secs", _saved_min_compile_time.pop()
         )
     if _saved_error_mode:
-        import equinox._errors as errors
-
-        setattr(errors, "EQX_ON_ERROR", _saved_error_mode.pop())
+        set_error_mode(_saved_error_mode.pop())
