@@ -22,7 +22,7 @@ from jaxclear import cli
 from jaxclear._core._progress import Progress
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import ModifiedCoulomb
-from jaxclear.studies import _identify
+from jaxclear.studies import _fit_settings, _identify
 
 QUICK_SPAN = 1.5e-3  # s of the 6 ms record: several impacts, seconds to fit
 QUICK_SCAN = 8  # one vectorised chunk
@@ -191,7 +191,7 @@ def test_fit_short_of_the_noise_level_exits_3(quick_data, config, tmp_path, caps
     info = json.loads((out / "fit.json").read_text())
     assert info["success"] is False and "above the noise level" in info["reason"]
     assert info["status"].startswith("not a fit: ")
-    assert info["loss"] > _identify.NOISE_LEVEL_LOSS
+    assert info["loss"] > _fit_settings.NOISE_LEVEL_LOSS
     for name in ("fit.csv", "fit.png", "loss.png"):
         assert (out / name).is_file()
 
@@ -199,14 +199,14 @@ def test_fit_short_of_the_noise_level_exits_3(quick_data, config, tmp_path, caps
 def test_noise_level_bound():
     """The success threshold: ``NOISE_LEVEL_LOSS`` for the usual hundreds of residuals, the
     chi-square bound (once in a million at the noise level) for a few."""
-    assert _identify.noise_level_bound(900, 1) == _identify.NOISE_LEVEL_LOSS == 2.0
-    few = [_identify.noise_level_bound(n, 1) for n in (2, 5, 10, 30)]
+    assert _fit_settings.noise_level_bound(900, 1) == _fit_settings.NOISE_LEVEL_LOSS == 2.0
+    few = [_fit_settings.noise_level_bound(n, 1) for n in (2, 5, 10, 30)]
     assert all(b > 2.0 for b in few) and few == sorted(few, reverse=True)
     # Wilson–Hilferty against scipy's exact chi-square quantile: never below it (a fit at the noise
     # level is not refused), at most 5 % above from 5 degrees of freedom on
     chi2 = pytest.importorskip("scipy.stats").chi2
     for dof in (5, 10, 30):  # where the chi-square bound is above NOISE_LEVEL_LOSS
-        ratio = _identify.noise_level_bound(dof + 1, 1) / (chi2.isf(1e-6, dof) / (dof + 1))
+        ratio = _fit_settings.noise_level_bound(dof + 1, 1) / (chi2.isf(1e-6, dof) / (dof + 1))
         assert 1.0 <= ratio <= 1.05, (dof, ratio)
 
 

@@ -1,0 +1,278 @@
+"""What identification is set with and what it returns: ``FitSettings``, ``Estimate``,
+``IdentificationResult``, and the noise-level bound of its verdict (the method: ``_identify.py``)."""
+
+import dataclasses
+import math
+from typing import Any
+
+import equinox as eqx
+import numpy as np
+
+from .._core._errors import ModelError
+from ..solve._solver import SolverConfig
+
+DEFAULT_HORIZONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
+"""Fractions of the record fitted in turn (module doc, "growing windows")."""
+
+INFORMATIVE_SPREAD = 1.0
+"""Two scanned points whose losses differ by at most this (1 = the noise level) tie on a window."""
+
+TIED_SHARE = 0.25
+"""A window ties (tells the scanned points apart too little to pick one) when at least this share
+of the other scanned points tie with the best (``INFORMATIVE_SPREAD``). Before the first impact
+a clearance changes nothing, so most points tie exactly; a window that carries the parameter
+separates its best point from all but its nearest neighbours."""
+
+LOSS_GROWTH = 2.0
+"""A window whose fitted loss exceeds this multiple of the best loss of the shorter windows is
+beyond the horizon the model can follow (chaotic impact sequence, model error): the fit keeps
+the estimate of the shorter windows and says so in ``status``."""
+
+NOISE_LEVEL_LOSS = 2.0
+"""Largest final loss of a fit that reaches the noise level, for the usual hundreds of residuals
+(``noise_level_bound`` raises it for few). Why 2: at the noise level the loss is χ²/N (mean 1,
+standard deviation √(2/N): for N = 100 residuals a loss of 2 is 7 standard deviations out); noise
+levels estimated from the data (``Measurements``, third differences) are within about 15 % of the
+truth (notebook 06), which moves the loss by a factor of up to 1.15² ≈ 1.3; and the smooth contact
+model follows sharp impacts to within the noise (docs/identification.md, losses 0.7–1.1). A loss
+above 2 means residuals 1.4 times the noise on average: the model does not follow the data. Equal
+to ``LOSS_GROWTH``, the loss growth at which a window is dropped."""
+
+NOISE_LEVEL_Z = 4.753
+"""Standard normal quantile at 1 − 1e-6: the chi-square bound of ``noise_level_bound`` is exceeded
+by a fit at the noise level once in a million."""
+
+DEFAULT_SCAN_POINTS = 16
+"""Points of the global scan per fitted parameter (one solve each, vectorised in chunks)."""
+
+SCAN_CHUNK = 8
+"""Members per vectorised scan solve (bounds memory; one compilation per chunk size)."""
+
+DEFAULT_MAX_ITERATIONS = 20
+"""Levenberg–Marquardt iterations per window."""
+
+DEFAULT_TOLERANCE = 1e-6
+"""Relative decrease of the loss (and relative step) at which a window's refinement has converged."""
+
+
+def noise_level_bound(count: int | float, parameters: int) -> float:
+    """Largest loss (mean squared normalised residual) of a fit that reaches the noise level.
+
+    The larger of ``NOISE_LEVEL_LOSS`` and the chi-square bound: at the noise level Σr² follows a
+    chi-square law with ν = count − parameters degrees of freedom, whose quantile at 1 − 1e-6
+    (``NOISE_LEVEL_Z``) is about ν (1 − 2/(9ν) + z √(2/(9ν)))³ (Wilson–Hilferty: at most 5 %
+    above the exact quantile from ν = 5 on, more lenient below), divided by ``count``. It governs
+    only for a few tens of residuals or fewer, where chance alone can double the loss.
+
+    Args:
+        count: number of residuals (signals × instants in the windows used).
+        parameters: number of fitted parameters.
+    """
+    dof = max(float(count) - parameters, 1.0)
+    a = 2.0 / (9.0 * dof)
+    quantile = dof * (1.0 - a + NOISE_LEVEL_Z * math.sqrt(a)) ** 3
+    return max(NOISE_LEVEL_LOSS, quantile / max(float(count), 1.0))
+
+
+def _fractions(horizons: Any) -> Any:
+    """``horizons`` as a tuple of floats; anything that is not a sequence of numbers unchanged,
+    for ``__check_init__`` to refuse."""
+    if isinstance(horizons, str | bytes):
+        return horizons
+    try:
+        return tuple(float(h) for h in horizons)
+    except (TypeError, ValueError):
+        return horizons
+
+
+def _whole(value: Any) -> Any:
+    """A whole number (``4``, ``4.0``, ``np.int64(4)``) as an ``int``; anything else unchanged."""
+    if isinstance(value, bool | np.bool_) or not isinstance(
+        value, int | float | np.integer | np.floating
+    ):
+        return value
+    return int(value) if math.isfinite(value) and int(value) == value else value
+
+
+def _number(value: Any) -> Any:
+    """A real number as a ``float``; anything else unchanged."""
+    if isinstance(value, bool | np.bool_) or not isinstance(
+        value, int | float | np.integer | np.floating
+    ):
+        return value
+    return float(value)
+
+
+class FitSettings(eqx.Module):
+    """How ``identify`` fits: the growing windows, the global scan and the optimiser (all static).
+
+    Attributes:
+        horizons: increasing fractions of the record in (0, 1], the last 1: the growing windows
+            (module doc).
+        scan_points: global-scan size; ``None``: ``DEFAULT_SCAN_POINTS`` per parameter; 0 (or 1):
+            no scan, the refinement starts from the initial values.
+        max_iterations: Levenberg–Marquardt iterations per window (≥ 1).
+        tolerance: relative decrease of the loss (and relative step) below which a window's
+            refinement has converged (≥ 0).
+
+    Raises:
+        ModelError: a field out of its range, naming the field and what is allowed.
+    """
+
+    horizons: tuple[float, ...] = eqx.field(
+        static=True, default=DEFAULT_HORIZONS, converter=_fractions
+    )
+    scan_points: int | None = eqx.field(static=True, default=None, converter=_whole)
+    max_iterations: int = eqx.field(static=True, default=DEFAULT_MAX_ITERATIONS, converter=_whole)
+    tolerance: float = eqx.field(static=True, default=DEFAULT_TOLERANCE, converter=_number)
+
+    def __check_init__(self):
+        horizons = self.horizons
+        if (
+            not isinstance(horizons, tuple)
+            or not horizons
+            or not all(isinstance(h, float) for h in horizons)
+            or any(not 0.0 < h <= 1.0 for h in horizons)
+            or horizons[-1] != 1.0
+        ):
+            raise ModelError(
+                f"horizons must be increasing fractions of the record in (0, 1] ending with 1, "
+                f"e.g. (0.25, 0.5, 1.0); got {horizons!r}."
+            )
+        if any(b <= a for a, b in zip(horizons, horizons[1:], strict=False)):
+            raise ModelError(
+                f"horizons must be increasing (each window longer than the one before), got "
+                f"{horizons!r}."
+            )
+        n = self.scan_points
+        if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 0):
+            raise ModelError(
+                f"scan_points must be None ({DEFAULT_SCAN_POINTS} per parameter), 0 (no scan: "
+                f"start from the initial values) or a positive whole number, got {n!r}."
+            )
+        n = self.max_iterations
+        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+            raise ModelError(
+                f"max_iterations must be a whole number of at least 1 (Levenberg–Marquardt "
+                f"iterations per window), got {n!r}."
+            )
+        tol = self.tolerance
+        if not isinstance(tol, float) or not math.isfinite(tol) or tol < 0:
+            raise ModelError(
+                f"tolerance must be a finite number of at least 0 (relative decrease of the loss "
+                f"at which a window has converged, e.g. 1e-6), got {tol!r}."
+            )
+
+    def scan_count(self, parameters: int) -> int:
+        """Points of the global scan for ``parameters`` fitted parameters (≤ 1: no scan)."""
+        return DEFAULT_SCAN_POINTS * parameters if self.scan_points is None else self.scan_points
+
+
+@dataclasses.dataclass(frozen=True)
+class Estimate:
+    """One fitted parameter.
+
+    Attributes:
+        value: the estimate. std: its standard deviation (1σ) from the Gauss–Newton covariance
+            (module doc). initial, lower, upper: the start and bounds of the fit. unit: SI unit.
+    """
+
+    value: float
+    std: float
+    initial: float
+    lower: float
+    upper: float
+    unit: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+UNCERTAINTY = (
+    "std is one standard deviation (1σ) of each estimate: the Gauss–Newton covariance over the "
+    "windows used, scaled by the reduced chi-square when above 1, plus the drift of the estimate "
+    "between the last two windows"
+)
+"""What ``std`` is, as fit.json says it (``IdentificationResult.summary``)."""
+
+
+@dataclasses.dataclass
+class IdentificationResult:
+    """What ``identify`` found.
+
+    Attributes:
+        parameters: ``{name: Estimate}``.
+        values: ``{name: value}`` (the estimates; pass to ``jaxclear.with_parameters``).
+        covariance: (p, p) covariance of the estimates, in their units (module doc).
+        loss: final mean squared normalised residual over the windows used (≈ 1 at the noise
+            level). loss_whole_record: the same over the whole record.
+        window_end: end of the longest window whose fit was kept, s: the estimate and its
+            covariance come from the data up to this time (``LOSS_GROWTH``).
+        chi2_scale: s² used in the covariance (≥ 1).
+        noise: σ per signal used for the weights; noise_estimated: whether it was estimated.
+        history: one dict per evaluation that changed the estimate or ended a stage:
+            ``stage`` (``"scan"``, ``"window 1/3"``, ...), ``horizon`` (s), ``iteration``, ``loss``.
+        iterations: Levenberg–Marquardt iterations over all windows.
+        converged: the last window's refinement met its tolerance. status: one line; on a failed
+            fit it starts with ``NOT_A_FIT`` and ``reason``.
+        success: the estimates and their standard deviations are finite, a window told the
+            scanned points apart, and ``loss`` reaches the noise level (``noise_level_bound``).
+            reason: why not, with what to try (empty on success). A result that is not a success
+            is no estimate of the parameters: its ``std`` are not reliable either.
+        time: wall time of the fit, s (compilation included).
+        scan: ``{"values": (K, p), "loss": (K,)}`` of the global scan (empty if none).
+        t: data times, s. measured, fitted: ``{signal: (N,)}`` at ``t``.
+        solver: the ``SolverConfig`` used.
+    """
+
+    parameters: dict[str, Estimate]
+    covariance: np.ndarray
+    loss: float
+    loss_whole_record: float
+    window_end: float
+    chi2_scale: float
+    noise: dict[str, float]
+    noise_estimated: dict[str, bool]
+    history: list[dict[str, Any]]
+    iterations: int
+    converged: bool
+    status: str
+    success: bool
+    reason: str
+    time: float
+    scan: dict[str, np.ndarray]
+    t: np.ndarray
+    measured: dict[str, np.ndarray]
+    fitted: dict[str, np.ndarray]
+    solver: SolverConfig
+
+    @property
+    def values(self) -> dict[str, float]:
+        return {name: e.value for name, e in self.parameters.items()}
+
+    def summary(self) -> dict[str, Any]:
+        """A JSON-ready dict (what ``jaxclear fit`` writes as fit.json)."""
+        return {
+            "success": self.success,
+            "reason": self.reason,
+            "parameters": {n: e.as_dict() for n, e in self.parameters.items()},
+            "uncertainty": UNCERTAINTY,
+            "covariance": self.covariance.tolist(),
+            "loss": self.loss,
+            "loss_whole_record": self.loss_whole_record,
+            "window_end_s": self.window_end,
+            "chi2_scale": self.chi2_scale,
+            "noise": self.noise,
+            "noise_estimated": self.noise_estimated,
+            "iterations": self.iterations,
+            "converged": self.converged,
+            "status": self.status,
+            "time_s": self.time,
+            "history": self.history,
+            "scan": {k: np.asarray(v).tolist() for k, v in self.scan.items()},
+            "solver": {
+                "method": self.solver.method,
+                "rtol": self.solver.rtol,
+                "atol": self.solver.atol,
+            },
+        }
