@@ -26,6 +26,7 @@ from .io._measurements import Measurements as Measurements  # noqa: E402
 from .model import AbstractDriver as AbstractDriver  # noqa: E402
 from .model import AbstractForceElement as AbstractForceElement  # noqa: E402
 from .model import AbstractJoint as AbstractJoint  # noqa: E402
+from .model import AbstractStateElement as AbstractStateElement  # noqa: E402
 from .model import AppliedForce as AppliedForce  # noqa: E402
 from .model import AppliedTorque as AppliedTorque  # noqa: E402
 from .model import Body as Body  # noqa: E402
