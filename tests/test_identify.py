@@ -126,6 +126,16 @@ def test_fit_command_writes_results(quick_data, quick_fit, config, tmp_path):
     for png in ("fit.png", "loss.png"):
         assert (out / png).stat().st_size > 1000
 
+    # fit again into the folder, where fit.png can no longer be replaced in place (issue 28, item 2:
+    # exit 1 left the new fit.json beside the old plots and a stray temporary file): the new
+    # results are staged beside it and moved into place whole
+    (out / "fit.png").unlink()
+    (out / "fit.png").mkdir()
+    assert cli.main(argv) == 0
+    assert (out / "fit.png").is_file() and (out / "loss.png").is_file()
+    assert sorted(p.name for p in out.iterdir()) == ["fit.csv", "fit.json", "fit.png", "loss.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fit"]
+
 
 # --- a fit never reports a wrong answer as a success (issue 28, item 4) ---------------------------
 
