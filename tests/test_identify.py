@@ -354,3 +354,26 @@ def test_full_records(name, rpm, fitted):
         truth = meta["true_parameters"]["clearance"][key.split(".")[0]]
         assert abs(estimate.value - truth) <= TARGET * truth, (key, estimate)
         assert abs(estimate.value - truth) <= 2 * estimate.std, (key, estimate)
+
+
+def test_covariance_is_infinite_never_nan_where_undefined():
+    """Issue 23, case 2: an estimate pressed against its bound made ∂θ/∂u exactly 0, the Jacobian
+    NaN (jac_u / 0) and the SVD of the rank check fail (LinAlgError, exit 1)."""
+    specs = [
+        jaxclear.FitParameter("B.clearance", 5e-4, 1e-4, 8e-4),
+        jaxclear.FitParameter("B.restitution", 0.9, 0.5, 1.0),
+    ]
+    rng = np.random.default_rng(0)
+    jac_u = rng.normal(size=(40, 2))
+    with np.errstate(all="raise"):  # no division by zero, no invalid value on the way
+        covariance, note = _identify._covariance(specs, jac_u, np.array([1e-4, 0.0]), 1.0)
+        assert np.all(np.isinf(covariance)) and "B.restitution at a bound of its range" in note
+        broken = jac_u.copy()
+        broken[3, 0] = np.nan  # a solve that failed inside the Jacobian
+        covariance, note = _identify._covariance(specs, broken, np.array([1e-4, 0.1]), 1.0)
+        assert np.all(np.isinf(covariance)) and "Jacobian is not finite" in note
+    covariance, note = _identify._covariance(specs, jac_u, np.array([1e-4, 0.1]), 1.0)
+    assert np.all(np.isfinite(covariance)) and note == ""
+    twins = np.column_stack([jac_u[:, 0], jac_u[:, 0] * 2.0 + 1e-6 * jac_u[:, 1]])
+    covariance, note = _identify._covariance(specs, twins, np.array([1.0, 1.0]), 1.0)
+    assert "not separately identifiable" in note and "B.clearance and B.restitution" in note

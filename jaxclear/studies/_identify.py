@@ -395,16 +395,9 @@ def _estimates(
     dtheta = np.array(
         [float(jax.grad(q.from_unconstrained)(jnp.asarray(u[i]))) for i, q in enumerate(specs)]
     )
-    jac = jac_u / dtheta[None, :]
     dof = max(windows.counts[used] - p, 1.0)
     scale = max(1.0, float(np.sum(r**2)) / dof)
-    information = jac.T @ jac
-    note = ""
-    if np.linalg.matrix_rank(jac) < p:  # a parameter (or combination) the data do not constrain
-        covariance = np.full((p, p), np.inf)
-        note = "; not identifiable from the data fitted: the covariance is infinite"
-    else:
-        covariance = scale * np.linalg.inv(information)
+    covariance, note = _covariance(specs, jac_u, dtheta, scale)
     values = _values(specs, u)
     # window-to-window change of the estimate: model or numerical error that the residuals'
     # covariance cannot see (correlated residuals) shows as a drift of the estimate with the span
@@ -418,6 +411,51 @@ def _estimates(
     }
     loss = float(np.sum(r**2)) / windows.counts[used]
     return estimates, covariance, loss, scale, note
+
+
+CORRELATED = 0.99
+"""|correlation| between two estimates above which they are reported as not separately
+identifiable (the data constrain a combination of them, not each one)."""
+
+
+def _covariance(specs, jac_u, dtheta, scale: float) -> tuple[np.ndarray, str]:
+    """Gauss–Newton covariance s² (JᵀJ)⁻¹ in the parameters' units, with J = (∂r/∂u) / (∂θ/∂u),
+    and a note for the status (``""`` if none).
+
+    Infinite, never NaN, where it is not defined: a parameter pressed against a bound of its
+    range (the transform's slope ∂θ/∂u is 0 there, in floating point), residuals or a Jacobian
+    that are not finite (a failed solve), or a rank-deficient J. Estimates correlated beyond
+    ``CORRELATED`` are named in the note.
+    """
+    p = len(specs)
+    infinite = np.full((p, p), np.inf)
+    at_bound = [
+        q.name for q, d in zip(specs, dtheta, strict=True) if not (np.isfinite(d) and d != 0)
+    ]
+    if at_bound:
+        return infinite, (
+            f"; {', '.join(at_bound)} at a bound of {'its' if len(at_bound) == 1 else 'their'} "
+            "range: the covariance is infinite (widen the bounds or start elsewhere)"
+        )
+    jac = jac_u / dtheta[None, :]
+    if not np.all(np.isfinite(jac)):
+        return infinite, "; the Jacobian is not finite (a solve failed): the covariance is infinite"
+    if np.linalg.matrix_rank(jac) < p:  # a parameter (or combination) the data do not constrain
+        return infinite, "; not identifiable from the data fitted: the covariance is infinite"
+    covariance = scale * np.linalg.inv(jac.T @ jac)
+    sd = np.sqrt(np.diag(covariance))
+    pairs = [
+        f"{specs[i].name} and {specs[j].name} ({covariance[i, j] / (sd[i] * sd[j]):+.3f})"
+        for i in range(p)
+        for j in range(i + 1, p)
+        if abs(covariance[i, j]) > CORRELATED * sd[i] * sd[j]
+    ]
+    note = (
+        f"; not separately identifiable, correlation beyond {CORRELATED}: {', '.join(pairs)}"
+        if pairs
+        else ""
+    )
+    return covariance, note
 
 
 def _whole_record(windows: _Windows, data: Measurements, u) -> tuple[float, dict[str, np.ndarray]]:
