@@ -94,15 +94,15 @@ def test_quick_fit_recovers_clearance(quick_fit):
     assert np.sqrt(np.mean(residual**2)) < 3 * result.noise["slider_x"]
 
 
-def test_fit_command_writes_results(quick_data, quick_fit, config, tmp_path):
-    path, meta = quick_data
-    out = tmp_path / "fit"
-    argv = [
+def quick_fit_argv(path, config, out, *extra):
+    """``jaxclear fit`` of the quick record with the quick scan and windows (shares compilation)."""
+    return [
         "fit",
         str(path),
         config,
         "--fit",
         "B.clearance=5e-4:1e-4:8e-4",
+        *extra,
         "--scan-points",
         str(QUICK_SCAN),
         "--horizons",
@@ -111,6 +111,12 @@ def test_fit_command_writes_results(quick_data, quick_fit, config, tmp_path):
         str(out),
         "--quiet",
     ]
+
+
+def test_fit_command_writes_results(quick_data, quick_fit, config, tmp_path):
+    path, meta = quick_data
+    out = tmp_path / "fit"
+    argv = quick_fit_argv(path, config, out)
     assert cli.main(argv) == 0
     info = json.loads((out / "fit.json").read_text())
     fitted = info["parameters"]["B.clearance"]
@@ -179,22 +185,7 @@ def test_fit_short_of_the_noise_level_exits_3(quick_data, config, tmp_path, caps
     its files, fit.json says why, and the command prints the reason and exits with 3."""
     path, _ = quick_data
     out = tmp_path / "fit"
-    argv = [
-        "fit",
-        str(path),
-        config,
-        "--fit",
-        "B.clearance=5e-4:1e-4:8e-4",
-        "--noise",
-        "slider_x=1e-8",
-        "--scan-points",
-        str(QUICK_SCAN),
-        "--horizons",
-        ",".join(str(h) for h in QUICK_HORIZONS),
-        "--out",
-        str(out),
-        "--quiet",
-    ]
+    argv = quick_fit_argv(path, config, out, "--noise", "slider_x=1e-8")
     assert cli.main(argv) == 3
     err = capsys.readouterr().err.strip()
     assert err.startswith("jaxclear: not a fit (exit 3):") and "noise level" in err, err

@@ -1,6 +1,6 @@
 """Output folders: each holds one command's results, complete, or the earlier ones untouched.
 
-- ``run`` and ``fit`` write into a fresh staging folder beside ``--out`` (``.NAME.partial-XXXX``)
+- ``run`` and ``fit`` write into a fresh staging folder beside ``--out`` (``.NAME.partial-<random>``)
   and move it into place at the end (``StagedOutput.publish``): an interrupted or failed write
   leaves the earlier folder as it was, never a mix of two runs.
 - ``montecarlo`` and ``sweep`` write in place, each file replaced atomically after every chunk,
