@@ -59,6 +59,8 @@ def test_same_configuration_is_replaced_whole(tmp_path):
     assert not (out / "stray.txt").exists(), "the folder holds one run: the new one, whole"
     assert json.loads((out / "run.json").read_text())["config"] == first["config"]
     assert leftovers(tmp_path) == []
+    # whether compiled programs are cached changes no result: not another configuration
+    assert run(out, "--no-compilation-cache") == 0
 
 
 def test_another_configuration_is_refused_then_forced(tmp_path, capsys):

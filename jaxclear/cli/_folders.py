@@ -55,10 +55,17 @@ def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
     return [] if old == new else [prefix.rstrip(".")]
 
 
+UNRELATED = (("solver", "compilation_cache"),)
+"""Settings that do not change the results, so a folder may be run again with another value."""
+
+
 def _configuration(config: dict) -> dict:
-    """What must match for a folder to be run again: every section but [output]."""
+    """What must match for a folder to be run again: every section but [output] and
+    ``UNRELATED``."""
     plain = json.loads(json.dumps(config, default=str))
     plain.pop("output", None)
+    for section, key in UNRELATED:
+        plain.get(section, {}).pop(key, None)
     return plain
 
 
@@ -118,8 +125,7 @@ def _conflict(out: Path, owner: str, command: str, config: dict) -> str | None:
         return f"a {command}.json that cannot be read"
     if not isinstance(old, dict):
         return f"a {command}.json without its configuration"
-    old.pop("output", None)
-    changed = _differences(old, _configuration(config))
+    changed = _differences(_configuration(old), _configuration(config))
     if changed:
         return f"a {command} of another configuration (changed: {', '.join(changed[:6])})"
     return None
