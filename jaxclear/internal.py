@@ -11,6 +11,7 @@ from .studies._ensemble import EVENTS_PER_REVOLUTION as EVENTS_PER_REVOLUTION
 from .studies._ensemble import inadmissible_values as inadmissible_values
 from .studies._ensemble_result import MANIFEST as MANIFEST
 from .studies._ensemble_result import ResumeWarning as ResumeWarning
+from .studies._ensemble_result import configuration_differences as configuration_differences
 from .studies._ensemble_result import read_table as read_table
 from .studies._fit_settings import NOISE_LEVEL_LOSS as NOISE_LEVEL_LOSS
 from .studies._identify import check_identification as check_identification

@@ -16,9 +16,8 @@ import shutil
 import tempfile
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
 
-from ..internal import MANIFEST
+from ..internal import MANIFEST, configuration_differences
 from ._common import UsageError
 
 MANIFESTS = {"run.json": "run", "fit.json": "fit", "sweep.json": "sweep"}
@@ -44,15 +43,6 @@ def folder_owner(path: Path) -> str | None:
             return "unknown"
         return ENSEMBLE_TABLES.get(table, "unknown")
     return "unknown"
-
-
-def _differences(old: Any, new: Any, prefix: str = "") -> list[str]:
-    if isinstance(old, dict) and isinstance(new, dict):
-        out = []
-        for k in sorted(set(old) | set(new)):
-            out += _differences(old.get(k), new.get(k), f"{prefix}{k}.")
-        return out
-    return [] if old == new else [prefix.rstrip(".")]
 
 
 UNRELATED = (("solver", "compilation_cache"),)
@@ -125,7 +115,7 @@ def _conflict(out: Path, owner: str, command: str, config: dict) -> str | None:
         return f"a {command}.json that cannot be read"
     if not isinstance(old, dict):
         return f"a {command}.json without its configuration"
-    changed = _differences(_configuration(old), _configuration(config))
+    changed = configuration_differences(_configuration(old), _configuration(config))
     if changed:
         return f"a {command} of another configuration (changed: {', '.join(changed[:6])})"
     return None

@@ -169,12 +169,7 @@ def plot_ensemble_scatter(result, names: Sequence[str] | None = None) -> Figure:
         y = np.asarray(result.statistics[name], dtype=float) * stat_axis[2]
         x = values[:, p] * par_axis[2]
         ax.plot(x[ok], y[ok], ".", color="C0", markersize=4, alpha=0.7)
-        _mark_failed(ax, x[~ok], "failed" if k == 0 else None)
-        _panel(ax, stat_axis, "y")
-        ax.set_xlabel(_label(par_axis))
-        ax.grid(True, alpha=0.3)
-        if k == 0 and (~ok).any():
-            ax.legend(fontsize="x-small", loc="best")
+        _statistic_panel(ax, x, ok, k, stat_axis, par_axis)
     fig.suptitle(
         f"Monte Carlo: statistics against drawn parameters, {_members_text(result)}", fontsize=10
     )
@@ -203,12 +198,7 @@ def plot_sweep(result, names: Sequence[str] | None = None) -> Figure:
             ax.set_xscale("log")
         y = np.asarray(result.statistics[name], dtype=float) * stat_axis[2]
         ax.plot(x[keep], y[keep], "o-", color="C0", markersize=3.5, linewidth=1.2)
-        _mark_failed(ax, x[~ok], "failed" if k == 0 else None)
-        _panel(ax, stat_axis, "y")
-        ax.set_xlabel(_label(par_axis))
-        ax.grid(True, alpha=0.3)
-        if k == 0 and (~ok).any():
-            ax.legend(fontsize="x-small", loc="best")
+        _statistic_panel(ax, x, ok, k, stat_axis, par_axis)
     fig.suptitle(
         f"Sweep of {result.names[0]}: {_members_text(result).replace('members', 'values')}",
         fontsize=10,
@@ -319,3 +309,14 @@ def plot_sweep_modes(result) -> Figure:
         fontsize=10,
     )
     return fig
+
+
+def _statistic_panel(ax, x, ok, k: int, stat_axis, par_axis) -> None:
+    """The common finish of a statistic-against-parameter panel: failed members as red crosses
+    (legend on the first panel only), axes labelled, grid."""
+    _mark_failed(ax, x[~ok], "failed" if k == 0 else None)
+    _panel(ax, stat_axis, "y")
+    ax.set_xlabel(_label(par_axis))
+    ax.grid(True, alpha=0.3)
+    if k == 0 and (~ok).any():
+        ax.legend(fontsize="x-small", loc="best")

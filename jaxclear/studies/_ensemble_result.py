@@ -119,14 +119,14 @@ def fingerprint(description: Mapping[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def _differences(old: Mapping, new: Mapping, prefix="") -> list[str]:
-    """Dotted keys whose values differ between two configurations."""
+def configuration_differences(old: Mapping, new: Mapping, prefix="") -> list[str]:
+    """Dotted keys whose values differ between two JSON-able configurations (nested mappings)."""
     keys = sorted(set(old) | set(new))
     out = []
     for k in keys:
         a, b = old.get(k), new.get(k)
         if isinstance(a, Mapping) and isinstance(b, Mapping):
-            out += _differences(a, b, f"{prefix}{k}.")
+            out += configuration_differences(a, b, f"{prefix}{k}.")
         elif json.dumps(a, default=str) != json.dumps(b, default=str):
             out.append(f"{prefix}{k}")
     return out
@@ -238,7 +238,7 @@ def resume(
             f"{manifest} cannot be read ({e}); remove it or choose another output folder."
         ) from None
     if old.get("fingerprint") != fingerprint(configuration):
-        changed = _differences(
+        changed = configuration_differences(
             old.get("settings", {}), json.loads(json.dumps(configuration, default=str))
         )
         raise EnsembleError(
