@@ -9,27 +9,24 @@ import jax
 import jax.core  # jax.core.Tracer: imported for type checkers (jax imports it itself)
 import jax.numpy as jnp
 import numpy as np
+from jax.custom_derivatives import CustomVJPPrimal, SymbolicZero
 from jax.interpreters import ad
 from jaxtyping import ArrayLike
 
 from .._core._checks import is_concrete, staging
 from .._core._errors import InputCheck, ModelError, SimulationError
 from .._core._executable_cache import stored_jit
-from .._core._smooth import safe_norm
 from ..dynamics._assembly import assemble_state, check_assembly
 from ..dynamics._equations import (
-    clearance_outputs,
-    evaluate,
-    forces_and_caches,
     implicit_stage,
     memory_decay_rates,
     memory_offset_shift,
-    solve_accelerations,
     vector_field,
 )
 from ..dynamics._equations import initial_state as dynamics_initial_state
-from ..dynamics._groups import evaluation_groups
-from ._extremes import ExtremesTracking, Observation
+from ._extremes import ExtremesTracking
+from ._observables import input_error, make_trajectory, observe
+from ._sensitivity import SENSITIVITY_CORE
 from ._solver import SolverConfig, solver_config
 from ._trajectory import Trajectory
 
@@ -70,76 +67,23 @@ def check_parameters(mechanism) -> None:
             )
 
 
-def _outputs(mechanism, t, y) -> dict[str, Any]:
-    ev = evaluate(mechanism, t, y)
-    lam = ev.multipliers
-    slices = mechanism.constraint_slices
-    if mechanism.driver is not None:
-        torque = -lam[slices[mechanism.driver.name]][0]
-    else:
-        torque = jnp.zeros((), y.dtype)
-    reactions = {j.name: lam[slices[j.name]] for j in mechanism.joints}
-    clearance = clearance_outputs(mechanism, ev)
-    phi, phid = ev.phi, ev.phi_dot
-    viol = jnp.max(jnp.abs(phi), initial=0.0)
-    vviol = jnp.max(jnp.abs(phid), initial=0.0)
-    n = mechanism.num_coordinates
-    return dict(
-        qdd=ev.qdd,
-        internal_state=y[2 * n :],
-        multipliers=lam,
-        input_torque=torque,
-        reactions=reactions,
-        clearance=clearance,
-        constraint_violation=viol,
-        velocity_violation=vviol,
-    )
+_OBSERVE = eqx.filter_jit(observe)
 
 
-def _input_error(mechanism, y0, assembled_ok):
-    """Code of the first failed input check (``InputCheck``), ``InputCheck.PASSED`` if none."""
-    masses = mechanism.mass_diagonal
-    return jnp.select(
-        [~assembled_ok, jnp.any(~(masses > 0) | ~jnp.isfinite(masses)), jnp.any(~jnp.isfinite(y0))],
-        [InputCheck.NOT_ASSEMBLED, InputCheck.MASS_OR_INERTIA, InputCheck.STATE_NOT_FINITE],
-        InputCheck.PASSED,
-    ).astype(jnp.int32)
+ADJOINTS = ("auto", "forward", "reverse", "discrete-forward", "discrete-reverse")
+"""Names ``simulate`` accepts for ``adjoint`` (besides a ``diffrax.AbstractAdjoint``).
 
+``"auto"``, ``"forward"``, ``"reverse"``: the error-controlled sensitivity solve
+(``jaxclear.solve._sensitivity``); ``"discrete-forward"``, ``"discrete-reverse"`` (and a diffrax
+adjoint): diffrax's differentiation of the solver's steps, whose error is not controlled."""
 
-def _observe(t, y, mechanism) -> Observation:
-    """What ``ExtremesTracking`` records at the end of each step (``jaxclear.solve._extremes``).
+SENSITIVITY_ADJOINTS = ("auto", "forward", "reverse")
 
-    The part of the right-hand side the extremes need, no more: forces (keeping each clearance
-    joint's kinematics and contact forces from the same pass) and accelerations, without the
-    internal-state rates or a second contact evaluation.
-    """
-    q, qd, states = mechanism.split_state(y)
-    forces, caches = forces_and_caches(mechanism, t, q, qd, states)
-    qdd, lam, phi, _ = solve_accelerations(mechanism, t, q, qd, forces)
-    normal_force, penetration = {}, {}
-    for group, cache in zip(evaluation_groups(mechanism), caches):
-        for name, (kinematics, contact) in group.contacts(cache).items():
-            normal_force[name] = contact.normal_force
-            penetration[name] = kinematics.penetration
-    if mechanism.driver is not None:
-        torque = -lam[mechanism.constraint_slices[mechanism.driver.name]][0]
-    else:
-        torque = jnp.zeros((), y.dtype)
-    return Observation(
-        accelerations=qdd,
-        body_accelerations=safe_norm(jnp.reshape(qdd, (-1, 3))[:, :2], axis=-1),
-        input_torque=torque,
-        normal_force=normal_force,
-        penetration=penetration,
-        constraint_violation=jnp.max(jnp.abs(phi), initial=0.0),
-    )
-
-
-_OBSERVE = eqx.filter_jit(_observe)
-
-
-ADJOINTS = ("auto", "reverse", "forward")
-"""Names ``simulate`` accepts for ``adjoint`` (besides a ``diffrax.AbstractAdjoint``)."""
+REVERSE_SENSITIVITY_MAX = 16
+"""Reverse mode (``jax.grad``) through the sensitivity solve integrates one tangent per perturbed
+scalar (a leaf of the mechanism, or the whole ``y0``, counts with its size): with more than this
+many it uses diffrax's discrete adjoint (``SolverConfig.reverse_adjoint``), whose error is not
+controlled (docs/differentiation.md, "Many parameters")."""
 
 
 def _has_forward_mode_tracer(tree) -> bool:
@@ -169,6 +113,8 @@ def make_adjoint(adjoint, traced_tree=None, config=None) -> diffrax.AbstractAdjo
     """
     if isinstance(adjoint, diffrax.AbstractAdjoint):
         return adjoint
+    if adjoint in ("discrete-forward", "discrete-reverse"):
+        adjoint = adjoint.removeprefix("discrete-")
     if adjoint == "auto":
         adjoint = "forward" if _has_forward_mode_tracer(traced_tree) else "reverse"
     if adjoint == "reverse":
@@ -201,7 +147,7 @@ def _simulate_core(
         q0, qd0, pos_res, _ = assemble_state(mechanism, t0)
         assembled_ok = pos_res < ASSEMBLY_TOLERANCE
         y0 = initial_state(mechanism, q0, qd0)
-    input_error = _input_error(mechanism, y0, assembled_ok)
+    error = input_error(mechanism, y0, assembled_ok)
     saveat = diffrax.SaveAt(
         subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=track_extremes
     )
@@ -249,30 +195,239 @@ def _simulate_core(
     if offset:
         ys = ys + jax.vmap(lambda y: memory_offset_shift(mechanism, y))(ys)
         y_final = y_final + memory_offset_shift(mechanism, y_final)
-    n = mechanism.num_coordinates
-    out = jax.vmap(lambda t, y: _outputs(mechanism, t, y))(ts, ys)
-    return Trajectory(
-        t=ts,
-        q=ys[:, :n],
-        qd=ys[:, n : 2 * n],
-        qdd=out["qdd"],
-        internal_state=out["internal_state"],
-        multipliers=out["multipliers"],
-        input_torque=out["input_torque"],
-        reactions=out["reactions"],
-        constraint_violation=out["constraint_violation"],
-        velocity_violation=out["velocity_violation"],
-        clearance=out["clearance"],
-        extremes=sol.solver_state[1].extremes() if track_extremes else None,  # pyright: ignore[reportOptionalSubscript]
-        num_steps=sol.stats["num_steps"],
-        num_accepted_steps=sol.stats["num_accepted_steps"],
-        num_rejected_steps=sol.stats["num_rejected_steps"],
-        result=sol.result,
-        input_error=input_error,
-        t_final=sol.ts[1][-1],  # pyright: ignore[reportOptionalSubscript]
-        y_final=y_final,
-        mechanism=mechanism,
+    extremes = sol.solver_state[1].extremes() if track_extremes else None  # pyright: ignore[reportOptionalSubscript]
+    t_final = sol.ts[1][-1]  # pyright: ignore[reportOptionalSubscript]
+    return make_trajectory(
+        mechanism, ts, ys, y_final, extremes, sol.stats, sol.result, error, t_final
     )
+
+
+TIME_ARGUMENTS_MESSAGE = (
+    "simulate's error-controlled derivatives are with respect to the mechanism's parameters and y0; "
+    "for derivatives with respect to t0, t1, ts or statistics_start pass adjoint='discrete-forward' "
+    "(jax.jvp, jax.jacfwd) or adjoint='discrete-reverse' (jax.grad), which differentiate the solver's steps."
+)
+
+
+def _is_zero(x) -> bool:
+    return isinstance(x, SymbolicZero) or x is None
+
+
+def _check_no_time_tangents(tangents) -> None:
+    leaves = jax.tree_util.tree_leaves(tangents, is_leaf=lambda x: isinstance(x, SymbolicZero))
+    if not all(_is_zero(x) for x in leaves):
+        raise ValueError(TIME_ARGUMENTS_MESSAGE)
+
+
+def _inexact_leaves(tree) -> list:
+    """The leaves of ``tree``, ``None`` for those that are not inexact arrays (float0 tangents)."""
+    return [
+        x if jnp.issubdtype(x.dtype, jnp.inexact) else None for x in jax.tree_util.tree_leaves(tree)
+    ]
+
+
+def _with_integer_zeros(primal, leaves):
+    """The tangent tree of ``primal`` from its inexact leaves' tangents (``None`` elsewhere):
+    float0 zeros for the integer leaves."""
+    p_leaves, treedef = jax.tree_util.tree_flatten(primal)
+    full = [
+        np.zeros(np.shape(x), dtype=jax.dtypes.float0) if t is None else t
+        for t, x in zip(leaves, p_leaves)
+    ]
+    return jax.tree_util.tree_unflatten(treedef, full)
+
+
+def _unit_directions(leaves, flags, p):
+    """Unit directions along each scalar of the perturbed leaves (p = their total size), zero
+    along the others: a list like ``leaves`` of arrays with a leading axis p."""
+    eye, offset, out = jnp.eye(p), 0, []
+    for leaf, flag in zip(leaves, flags):
+        if flag:
+            size = int(np.prod(leaf.shape))
+            out.append(jnp.reshape(eye[:, offset : offset + size], (p,) + leaf.shape))
+            offset += size
+        else:
+            out.append(jnp.zeros((p,) + leaf.shape, leaf.dtype))
+    return out
+
+
+def differentiable_simulate(
+    mode, mechanism, grid, t0, t1, y0, start, config, progress, track_extremes, max_events
+) -> Trajectory:
+    """``_simulate_core`` whose derivatives come from the error-controlled sensitivity solve
+    (``jaxclear.solve._sensitivity``): a ``jax.custom_jvp`` for ``mode="forward"`` (``jax.jvp``,
+    ``jax.jacfwd``: one tangent per jvp), a ``jax.custom_vjp`` for ``mode="reverse"`` (``jax.grad``,
+    ``jax.vjp``, ``jax.jacrev``: the forward pass integrates one tangent per perturbed scalar of the
+    mechanism and y0, the backward pass contracts them with the cotangent). Without
+    differentiation either is the plain solve."""
+    dynamic, static = eqx.partition(mechanism, eqx.is_inexact_array)
+
+    def primal(dynamic, y0, grid, t0, t1, start):
+        return _simulate_core(
+            eqx.combine(dynamic, static),
+            grid,
+            t0,
+            t1,
+            y0,
+            start,
+            config,
+            diffrax.RecursiveCheckpointAdjoint(),
+            progress,
+            track_extremes,
+            max_events,
+        )
+
+    def solve_with_tangents(dynamic, y0, directions, dy0, grid, t0, t1, start):
+        return SENSITIVITY_CORE(
+            eqx.combine(dynamic, static),
+            grid,
+            t0,
+            t1,
+            y0,
+            start,
+            directions,
+            dy0,
+            config,
+            progress,
+            track_extremes,
+            max_events,
+        )
+
+    def tangent_solve(dynamic, y0, directions, dy0, grid, t0, t1, start):
+        traj, tangent = solve_with_tangents(dynamic, y0, directions, dy0, grid, t0, t1, start)
+        return traj, _inexact_leaves(tangent)
+
+    # jax.jacfwd is a vmap of jax.jvp over the tangents: batched over tangents only, the tangent
+    # solve integrates them all at once (one state, p tangents: cost ≈ 1 + c·p solves) and the
+    # trajectory stays unbatched, as jacfwd requires of a primal output
+    batched_solve = jax.custom_batching.custom_vmap(tangent_solve)
+
+    @batched_solve.def_vmap
+    def _(axis_size, in_batched, dynamic, y0, directions, dy0, *times):
+        flags = (in_batched[0], in_batched[1], in_batched[4:])
+        if not any(jax.tree_util.tree_leaves(flags)):
+
+            def merge(x, batched):
+                if batched:
+                    return jnp.reshape(x, (axis_size * x.shape[1],) + x.shape[2:])
+                return jnp.broadcast_to(x, (axis_size,) + x.shape[1:])
+
+            directions = jax.tree_util.tree_map(merge, directions, in_batched[2])
+            dy0 = None if dy0 is None else merge(dy0, in_batched[3])
+            traj, tangents = tangent_solve(dynamic, y0, directions, dy0, *times)
+            tangents = [None if t is None else t[:, None] for t in tangents]
+            out_batched = (
+                jax.tree_util.tree_map(lambda _: False, traj),
+                [None if t is None else True for t in tangents],
+            )
+            return (traj, tangents), out_batched
+        axes = jax.tree_util.tree_map(lambda b: 0 if b else None, in_batched)
+        out = jax.vmap(tangent_solve, in_axes=tuple(axes))(dynamic, y0, directions, dy0, *times)
+        return out, jax.tree_util.tree_map(lambda _: True, out)
+
+    args = (dynamic, y0, grid, t0, t1, start)
+    if mode == "forward":
+        fn = jax.custom_jvp(primal)
+
+        def jvp(primals, tangents):
+            dynamic, y0 = primals[:2]
+            d_dynamic, d_y0 = tangents[:2]
+            _check_no_time_tangents(tangents[2:])
+            directions = jax.tree_util.tree_map(
+                lambda x, d: (jnp.zeros_like(x) if _is_zero(d) else d)[None],
+                dynamic,
+                d_dynamic,
+                is_leaf=lambda x: isinstance(x, SymbolicZero),
+            )
+            dy0 = None if y0 is None or _is_zero(d_y0) else d_y0[None]
+            traj, tangents = batched_solve(dynamic, y0, directions, dy0, *primals[2:])
+            return traj, _with_integer_zeros(traj, [None if t is None else t[0] for t in tangents])
+
+        fn.defjvp(jvp, symbolic_zeros=True)
+        return fn(*args)
+
+    fn = jax.custom_vjp(primal)
+    layout = {"discrete": False}  # static facts the forward pass finds for the backward pass
+    is_primal = lambda x: isinstance(x, CustomVJPPrimal)  # noqa: E731
+
+    def fwd(dynamic, y0, *times):
+        _check_no_time_tangents(
+            [
+                SymbolicZero(None) if not x.perturbed else x
+                for x in jax.tree_util.tree_leaves(times, is_leaf=is_primal)
+            ]  # type: ignore[arg-type]
+        )
+        plain = lambda tree: jax.tree_util.tree_map(lambda x: x.value, tree, is_leaf=is_primal)  # noqa: E731
+        d_leaves, d_def = jax.tree_util.tree_flatten(dynamic, is_leaf=is_primal)
+        values = [x.value for x in d_leaves]
+        flags = [bool(x.perturbed) for x in d_leaves]
+        y0_value = None if y0 is None else y0.value
+        y0_flag = y0 is not None and bool(y0.perturbed)
+        p = sum(int(np.prod(v.shape)) for v, f in zip(values, flags) if f)
+        p += int(y0_value.size) if y0_flag else 0
+        dynamic, times = jax.tree_util.tree_unflatten(d_def, values), plain(times)
+        if p == 0:
+            return primal(dynamic, y0_value, *times), None
+        if p > REVERSE_SENSITIVITY_MAX:
+            # one tangent per perturbed scalar costs ∝ p: diffrax's discrete adjoint instead
+            discrete = lambda d, y: _simulate_core(  # noqa: E731
+                eqx.combine(d, static),
+                times[0],
+                times[1],
+                times[2],
+                y,
+                times[3],
+                config,
+                config.reverse_adjoint(),
+                progress,
+                track_extremes,
+                max_events,
+            )
+            traj, pullback = jax.vjp(discrete, dynamic, y0_value)
+            layout.update(discrete=True)
+            return traj, pullback
+        units = _unit_directions(values + ([y0_value] if y0_flag else []), flags + [y0_flag], p)
+        directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
+        dy0 = units[-1] if y0_flag else None
+        traj, tangent = solve_with_tangents(dynamic, y0_value, directions, dy0, *times)
+        layout.update(shapes=[v.shape for v in values], flags=flags, y0_flag=y0_flag, p=p)
+        return traj, _inexact_leaves(tangent)
+
+    def bwd(residuals, cotangent):
+        if residuals is None:
+            return (None,) * len(args)
+        if layout["discrete"]:
+            filled = jax.tree_util.tree_map(
+                lambda x: (
+                    jnp.zeros(x.aval.shape, x.aval.dtype) if isinstance(x, SymbolicZero) else x
+                ),
+                cotangent,
+                is_leaf=lambda x: isinstance(x, SymbolicZero),
+            )
+            g_dynamic, g_y0 = residuals(filled)
+            return (g_dynamic, g_y0, None, None, None, None)
+        tangents = residuals
+        shapes, flags, y0_flag, p = (layout[k] for k in ("shapes", "flags", "y0_flag", "p"))
+        cts = jax.tree_util.tree_leaves(cotangent, is_leaf=lambda x: isinstance(x, SymbolicZero))
+        total = jnp.zeros((p,))
+        for tangent, ct in zip(tangents, cts):
+            if tangent is None or _is_zero(ct) or not jnp.issubdtype(ct.dtype, jnp.inexact):
+                continue
+            total = total + jnp.reshape(tangent, (p, -1)) @ jnp.reshape(ct, (-1,))
+        grads, offset = [], 0
+        for shape, flag in zip(shapes, flags):
+            size = int(np.prod(shape))
+            grads.append(jnp.reshape(total[offset : offset + size], shape) if flag else None)
+            offset += size if flag else 0
+        d_def = jax.tree_util.tree_structure(dynamic)
+        g_dynamic = jax.tree_util.tree_unflatten(
+            d_def, [g if g is not None else jnp.zeros(s) for g, s in zip(grads, shapes)]
+        )
+        g_y0 = jnp.reshape(total[offset:], y0.shape) if y0_flag else None
+        return (g_dynamic, g_y0, None, None, None, None)
+
+    fn.defvjp(fwd, bwd, symbolic_zeros=True)
+    return fn(*args)
 
 
 def _is_concrete_number(x) -> bool:
@@ -403,6 +558,35 @@ def simulate(
     elif not traced:
         y0 = assemble(mechanism, float(np.asarray(t0)))
     start = t0 if statistics_start is None else statistics_start
+    if not (isinstance(adjoint, diffrax.AbstractAdjoint) or adjoint in ADJOINTS):
+        raise ValueError(
+            f"adjoint {adjoint!r} is unknown; use one of {', '.join(map(repr, ADJOINTS))} or a diffrax.AbstractAdjoint."
+        )
+    events = int(contact_events) if extremes else 0
+    if traced and isinstance(adjoint, str) and adjoint in SENSITIVITY_ADJOINTS:
+        if adjoint == "auto":
+            adjoint = "forward" if _has_forward_mode_tracer((mechanism, y0)) else "reverse"
+        try:
+            return differentiable_simulate(
+                adjoint,
+                mechanism,
+                grid,
+                jnp.asarray(t0, dtype=float),
+                jnp.asarray(t1, dtype=float),
+                y0,
+                jnp.asarray(start, dtype=float),
+                config,
+                progress,
+                extremes,
+                events,
+            )
+        except TypeError as e:  # jax.jvp/jacfwd through the reverse-mode rule (a custom_vjp)
+            if "custom_vjp" in str(e):
+                raise TypeError(
+                    "forward-mode differentiation (jax.jvp, jax.jacfwd) of simulate needs adjoint='forward' "
+                    "(or the default 'auto' when the jvp is not outside a jax.jit of your function)."
+                ) from e
+            raise
     try:
         traj = _simulate_core(
             mechanism,

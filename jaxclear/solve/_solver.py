@@ -62,6 +62,11 @@ class SolverConfig(eqx.Module):
             the latched impact speed, so it is measured against a typical approach speed rather
             than against |u| (with ``atol`` alone the offset rows, not the motion, set the step
             size in contact).
+        sensitivity_error_control: derivatives (``jax.jvp``/``jax.grad`` of ``simulate``) integrate
+            the tangents with the state and let the step-size controller's error norm cover them
+            (``jaxclear.solve._sensitivity``, docs/differentiation.md). ``False`` leaves them out
+            of the norm, as diffrax's own differentiation does: for checks only, the derivative's
+            error is then not controlled.
     """
 
     method: str = eqx.field(static=True, default="kvaerno5")
@@ -76,6 +81,7 @@ class SolverConfig(eqx.Module):
     newton_atol: float = eqx.field(static=True, default=1e-6)
     memory_speed: float = eqx.field(static=True, default=1.0)
     checkpoints: int | None = eqx.field(static=True, default=None)
+    sensitivity_error_control: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         if self.method not in METHODS:
