@@ -9,6 +9,7 @@ written after every chunk, resumed when the same command runs again.
 import argparse
 import csv
 import dataclasses
+import math
 import os
 import time
 import warnings
@@ -41,12 +42,12 @@ from ._prepare import grid, kept_start, prepare_output, solver_for
 DEVICE_COUNT_FLAG = "--xla_force_host_platform_device_count"
 """XLA flag that exposes the CPU as this many JAX devices, each running its own share of a chunk."""
 
-ENSEMBLE_FLAGS = ("--chunk-size", "--devices", "--no-progress", "--quiet")
+ENSEMBLE_FLAGS = ("--chunk-size", "--devices", "--member", "--no-progress", "--quiet")
 """Options every ensemble command adds (for 'did you mean' hints)."""
 
 
 def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add ``--chunk-size``, ``--devices``, ``--no-progress`` and ``--quiet``."""
+    """Add ``--chunk-size``, ``--devices``, ``--member``, ``--no-progress`` and ``--quiet``."""
     parser.add_argument(
         "--chunk-size",
         type=int,
@@ -62,6 +63,16 @@ def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="devices to spread each chunk over (default: every core this process may use, "
         f"exposed to JAX by XLA_FLAGS={DEVICE_COUNT_FLAG}=N on a CPU; every GPU on a GPU host)",
+    )
+    parser.add_argument(
+        "--member",
+        type=int,
+        default=None,
+        metavar="K",
+        help="replay member K alone (its index in the table), by the ensemble's own batched "
+        "program: write what 'jaxclear run' writes (results.csv, plots, modes.csv, run.json) into "
+        "--out DIR/member-K, with statistics bitwise equal to its row; the same command and "
+        "options as the ensemble (see docs/ensembles.md, 'Replaying a member')",
     )
     parser.add_argument(
         "--no-progress",
@@ -449,3 +460,165 @@ def summary_lines(result, summary: dict[str, Any], kind: str = "montecarlo") -> 
             )
         lines.append(line.translate(ASCII))
     return lines
+
+
+def member_folder(out_dir: Path, member: int) -> Path:
+    """Where ``--member K`` writes its run: ``DIR/member-K`` inside the ensemble's folder."""
+    return out_dir / f"member-{member}"
+
+
+def replay(
+    prepared: Prepared,
+    args: argparse.Namespace,
+    argv: list[str],
+    values: dict,
+    table_name: str,
+    kind: str,
+    say: Callable[..., None],
+) -> int:
+    """``--member K``: solve member K again by the ensemble's batched program and write what
+    ``jaxclear run`` writes into ``--out DIR/member-K``.
+
+    The chunk size and devices are those the ensemble command would use (``--chunk-size``,
+    ``--devices``); with the ensemble's table in ``--out DIR`` its step counts rebuild the
+    member's chunk and its row is compared with the replay's statistics.
+
+    Raises:
+        UsageError: K outside the ensemble or never solved (exit 2).
+        RunError: the replayed solve failed, or a file cannot be written (exit 1).
+    """
+    from ..studies import replay_member
+    from ._folders import StagedOutput
+    from ._run import run_info, write_run_outputs
+
+    member = args.member
+    settings = prepared.settings
+    n = len(next(iter(values.values())))
+    if not 0 <= member < n:
+        raise UsageError(f"--member {member}: the ensemble has members 0 to {n - 1}")
+    out_dir = Path(settings.config["output"]["directory"])
+    table = out_dir / table_name
+    rows = []
+    if (out_dir / MANIFEST).is_file():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ResumeWarning)
+            rows = read_table(table, tuple(values))
+    by_index = {int(r["index"]): r for r in rows if r.get("index", "").isdigit()}
+    steps = None
+    if len(by_index) == n:
+        steps = [int(by_index[i].get("num_steps") or 0) for i in range(n)]
+    devices = local_devices(args.devices)
+    per = len(devices)
+    chunk = -(-min(args.chunk_size, n) // per) * per
+    engine = EnsembleSettings(chunk_size=chunk, devices=devices, progress=False)
+    target = member_folder(out_dir, member)
+    staged = StagedOutput(target, f"--out {str(out_dir)!r}: member folder")
+    try:
+        say(
+            f"replaying member {member} of {n} (chunks of {chunk} on {per} "
+            f"{devices[0].platform.upper()} device{'s' if per > 1 else ''}"
+            f"{', chunk rebuilt from ' + str(table) if steps is not None else ''}) ...",
+            flush=True,
+        )
+        started = time.perf_counter()
+        try:
+            replayed = replay_member(
+                prepared.mechanism,
+                values,
+                prepared.t1,
+                member,
+                num_steps=steps,
+                t0=0.0,
+                statistics_start=prepared.statistics_start,
+                num_points=prepared.num_points,
+                solver=prepared.solver,
+                continuous_fraction=prepared.continuous_fraction,
+                settings=engine,
+            )
+        except EnsembleError as e:
+            raise UsageError(f"--member {member}: {one_line(e)}") from None
+        wall = time.perf_counter() - started
+        row = replayed.row
+        if row["status"] != "ok":
+            raise RunError(f"member {member} failed again, as in the ensemble: {row['message']}")
+        traj = replayed.trajectory
+        from ..analysis import statistics as trajectory_statistics
+
+        statistics = {k: float(row[k]) for k in trajectory_statistics(traj)}
+        info = run_info(
+            settings,
+            argv,
+            prepared.mechanism,
+            prepared.solver,
+            traj,
+            prepared.t1,
+            prepared.num_points,
+            prepared.statistics_start,
+            compile_time=float("nan"),
+            run_time=wall,
+            fast_compile=prepared.fast_compile,
+            compilation_cache=prepared.compilation_cache,
+        )
+        info["timing"] = (
+            "run_time_s: wall time of the replayed chunk's batched solve, compilation included; "
+            "compile_time_s is not measured apart (NaN)"
+        )
+        info["member"] = {
+            "kind": kind,
+            "index": member,
+            "values": {name: float(row[name]) for name in replayed.names},
+            "ensemble_statistics": replayed.statistics,
+            "num_steps": int(row["num_steps"]),
+            "chunk": replayed.chunk,
+            "lane": replayed.lane,
+            "chunk_size": replayed.chunk_size,
+            "devices": per,
+            "exact_chunk": replayed.exact_chunk,
+            "note": (
+                "solved by the ensemble's batched program (same chunk size and devices), so the "
+                "statistics equal the member's row bitwise; run.json's statistics are the row's"
+            ),
+        }
+        from ..solve import ideal_mechanism
+
+        ideal = ideal_mechanism(
+            jaxclear.with_parameters(prepared.mechanism, info["member"]["values"])
+        )
+        speed = abs(float(traj.mechanism.driver.constant_speed)) if traj.mechanism.driver else 0.0
+        period = 2.0 * math.pi / speed if speed else prepared.t1
+        try:
+            paths, files = write_run_outputs(
+                traj,
+                staged,
+                info,
+                statistics,
+                ideal,
+                prepared.t1,
+                prepared.num_points,
+                prepared.statistics_start,
+                prepared.continuous_fraction,
+                plots=settings.config["output"]["plots"],
+                period=period,
+                say=say,
+            )
+        except OSError as e:
+            raise RunError(
+                f"cannot write results to {str(target)!r}: {e.strerror or e}; choose another --out "
+                "folder"
+            ) from None
+    finally:
+        staged.discard()
+    say(f"member {member}: {int(row['num_steps'])} steps, {wall:.2f} s (compilation included)")
+    if member in by_index:
+        old = by_index[member]
+        differ = [k for k, v in replayed.statistics.items() if k in old and repr(v) != old[k]]
+        if differ:
+            say(
+                f"note: {len(differ)} statistics differ from row {member} of {table} "
+                f"({', '.join(differ[:4])}): the ensemble ran with other settings (chunk size, "
+                "devices, solver, ...) than this command"
+            )
+        else:
+            say(f"statistics bitwise equal to row {member} of {table}")
+    say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {target}/")
+    return 0

@@ -15,6 +15,7 @@ from ._ensemble_common import (
     base_info,
     finish,
     prepare,
+    replay,
     run_engine,
 )
 from ._settings import add_setting_arguments, config_reference
@@ -32,7 +33,11 @@ Members start centred (--start wall is refused: the wall start is per nominal cl
 Finished members are written after every chunk; the same command run again resumes from --out
 DIR, and a changed configuration (seed, samples, a distribution, an option) is refused. On a CPU
 the cores are exposed to JAX as devices ({DEVICE_COUNT_FLAG}=N in XLA_FLAGS, N = --devices or
-every usable core) unless XLA_FLAGS already sets it."""
+every usable core) unless XLA_FLAGS already sets it.
+
+To look at an outlier, run the same command again with --member K: member K is solved again by
+the ensemble's own batched program and written as 'jaxclear run' writes a run (results.csv, plots,
+modes.csv, run.json) into --out DIR/member-K, with statistics bitwise equal to its row."""
 
 EPILOG = f"""\
 distributions, in the config file (SI units; names as jaxclear.parameter_names(mechanism)):
@@ -194,6 +199,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     )
     for line in notes(dists, prepared.mechanism):
         say(line)
+    if args.member is not None:
+        values = jaxclear.studies.draw(dists, args.samples, args.seed)
+        return replay(prepared, args, argv, values, SAMPLES_CSV, "montecarlo", say)
 
     def call(**options):
         return jaxclear.montecarlo(

@@ -76,7 +76,9 @@ config file (TOML; every key optional; command-line options override it):
 {config_reference()}
 
   per-joint clearance tables [clearance.<joint>] take the keys marked 'also per joint' plus
-  journal_body, and override the shared [clearance] values for that joint. A custom mechanism is
+  journal_body and lubrication (a hydrodynamic film: lubrication = {{ viscosity = 0.4,
+  length = 0.01, theory = "short" }}; docs/cli.md), and override the shared [clearance] values
+  for that joint. A custom mechanism is
   described by [ground.points], [bodies.<name>], [joints.<name>], [driver], [springs.<name>] and
   [loads.<name>] tables: see docs/cli.md and examples/custom_mechanism.toml.
 
@@ -263,7 +265,6 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         jaxclear.assemble(ideal)  # a mechanism that cannot assemble is bad input: exit 2
         out_dir = claim_output(settings, "run", say)  # all input checked: may it take our results?
         staged.append(StagedOutput(out_dir, settings.source("output", "directory")))
-        stage = staged[0].stage
         if names and start == "wall":
             mechanism = wall_start(
                 mechanism, num_points=num_points
@@ -303,7 +304,55 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     except jaxclear.SimulationError as e:
         raise RunError(one_line(e)) from None
 
-    info: dict[str, Any] = dict(
+    info = run_info(
+        settings, argv, mechanism, solver, traj, t1, num_points, t_keep,
+        compile_time=compile_time, run_time=run_time, fast_compile=fast_compile,
+        compilation_cache=compilation_cache,
+    )  # fmt: skip
+    fraction = config["clearance"]["continuous_fraction"]
+    if not bool(traj.succeeded):
+        return _failed(traj, solver, info, staged[0], fraction, say)
+
+    kept = window(traj, t_keep)
+    statistics = run_statistics(traj)
+    try:
+        paths, files = write_run_outputs(
+            traj, staged[0], info, statistics, ideal, t1, num_points, t_keep, fraction,
+            plots=config["output"]["plots"], period=60.0 / rpm, say=say,
+        )  # fmt: skip
+    except OSError as e:
+        raise RunError(
+            f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
+        ) from None
+
+    stats = traj.stats()
+    say(
+        f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)"
+    )
+    say(f"from revolution {skip:g}: {_figures(kept, statistics)}")
+    say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
+    return 0
+
+
+def run_info(
+    settings: Settings,
+    argv: list[str],
+    mechanism,
+    solver,
+    traj,
+    t1: float,
+    num_points: int,
+    t_keep: float,
+    *,
+    compile_time: float,
+    run_time: float,
+    fast_compile: str,
+    compilation_cache: str,
+) -> dict[str, Any]:
+    """run.json's configuration, solver and timing entries (the statistics come later)."""
+    config = settings.config
+    names = [j.name for j in mechanism.clearance_joints]
+    return dict(
         format=RUN_FORMAT,
         status="complete",
         error=None,
@@ -340,51 +389,76 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         versions=package_versions(),
         jax_backend=jax.default_backend(),
     )
-    fraction = config["clearance"]["continuous_fraction"]
-    if not bool(traj.succeeded):
-        return _failed(traj, solver, info, staged[0], fraction, say)
 
+
+def write_run_outputs(
+    traj,
+    staged: StagedOutput,
+    info: dict,
+    statistics: dict,
+    ideal,
+    t1: float,
+    num_points: int,
+    t_keep: float,
+    fraction: float,
+    *,
+    plots: bool,
+    period: float,
+    say,
+) -> tuple[dict, list[str]]:
+    """Write a successful run's outputs (what ``jaxclear run`` writes) and publish them.
+
+    Plots of the kept revolutions against an ideal-joint reference run, modes.csv and the mode
+    timeline from the contacts located in ``traj``, results.csv, results.npz and run.json (``info``
+    with ``statistics`` and the contact modes), staged in ``staged`` and moved into place.
+
+    Args:
+        traj: a successful single ``Trajectory``.
+        staged: the staging folder (``StagedOutput``), published at the end.
+        info: run.json's entries (``run_info``).
+        statistics: run.json's ``statistics``.
+        ideal: the ideal-joint mechanism of the plots' reference run.
+        t1, num_points: the horizon and its output points (for the reference run).
+        t_keep: start of the kept window, s. fraction: continuous-contact threshold, fraction of
+            ``period`` (the crank period, s).
+        plots: write the PNG plots.
+
+    Returns:
+        ``(paths, files)``: ``write_results``'s paths and the other files written.
+
+    Raises:
+        OSError: a file cannot be written.
+    """
+    names = clearance_joint_names(traj)
     kept = window(traj, t_keep)
-    statistics = run_statistics(traj)
     reference = None
-    if names and config["output"]["plots"]:
+    if names and plots:
         say("ideal-joint reference run for the plots ...", flush=True)
         reference = _block(jaxclear.simulate(ideal, t1, num_points=num_points, solver="fast"))
         reference = window(reference, t_keep)
+    stage = staged.stage
     files = []
-    try:
-        if config["output"]["plots"]:
-            from ..plot import save_standard_plots
+    if plots:
+        from ..plot import save_standard_plots
 
-            files = [p.name for p in save_standard_plots(kept, stage, reference=reference)]
-        modes = (
-            _contact_modes(traj, kept, fraction, 60.0 / rpm, t_keep)
-            if names
-            else {"contact_mode_shares": {}, "contact_modes": {}}
-        )
-        if modes.get("events") is not None:
-            events = modes.pop("events")
-            files.append(write_modes_csv(stage / MODES_CSV, events).name)
-            if config["output"]["plots"]:
-                from ..plot import save_mode_timeline
-
-                files.append(save_mode_timeline(traj, stage, events=events, start=t_keep).name)
-        modes.pop("events", None)
-        info.update(statistics=statistics, **modes, files=files)
-        paths = write_results(stage, traj, info, fraction)
-        staged[0].publish()
-    except OSError as e:
-        raise RunError(
-            f"cannot write results to {str(out_dir)!r}: {e.strerror or e}; choose another --out folder"
-        ) from None
-
-    stats = traj.stats()
-    say(
-        f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)"
+        files = [p.name for p in save_standard_plots(kept, stage, reference=reference)]
+    modes = (
+        _contact_modes(traj, kept, fraction, period, t_keep)
+        if names
+        else {"contact_mode_shares": {}, "contact_modes": {}}
     )
-    say(f"from revolution {skip:g}: {_figures(kept, statistics)}")
-    say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
-    return 0
+    if modes.get("events") is not None:
+        events = modes.pop("events")
+        files.append(write_modes_csv(stage / MODES_CSV, events).name)
+        if plots:
+            from ..plot import save_mode_timeline
+
+            files.append(save_mode_timeline(traj, stage, events=events, start=t_keep).name)
+    modes.pop("events", None)
+    info.update(statistics=statistics, **modes, files=files)
+    paths = write_results(stage, traj, info, fraction)
+    staged.publish()
+    return paths, files
 
 
 def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) -> dict:

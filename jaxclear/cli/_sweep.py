@@ -9,7 +9,14 @@ import jaxclear
 from ..internal import inadmissible_values
 from ..studies import EnsembleError, sweep_values
 from ._common import UsageError, one_line
-from ._ensemble_common import add_ensemble_arguments, base_info, finish, prepare, run_engine
+from ._ensemble_common import (
+    add_ensemble_arguments,
+    base_info,
+    finish,
+    prepare,
+    replay,
+    run_engine,
+)
 from ._settings import BY_LABEL, add_setting_arguments, check_value, config_reference
 from ._sweep_chaos import add_arguments as add_chaos_arguments
 from ._sweep_chaos import check as check_chaos
@@ -24,7 +31,9 @@ The mechanism, speed, clearance joints and laws, horizon and solver come from th
 and options as 'jaxclear run' (its [montecarlo] table, if any, is ignored). The horizon in seconds
 is fixed by the config's rpm and revolutions, also when rpm itself is swept. Members start centred
 (--start wall is refused). The same command run again resumes from --out DIR; a changed
-configuration is refused."""
+configuration is refused. --member K solves value K again by the ensemble's own batched program
+and writes what 'jaxclear run' writes into --out DIR/member-K (statistics bitwise equal to its
+row)."""
 
 EPILOG = f"""\
 parameter names: as jaxclear.parameter_names(mechanism): B.clearance, B.restitution,
@@ -155,6 +164,10 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         f"{prepared.t1:.6g} s, {prepared.num_points} points, statistics from "
         f"{prepared.statistics_start:.6g} s, solver {prepared.solver.method}"
     )
+
+    if args.member is not None:
+        values_of = {args.param: values}
+        return replay(prepared, args, argv, values_of, SWEEP_CSV, "sweep", say)
 
     def call(**options):
         return jaxclear.sweep(

@@ -29,6 +29,7 @@ from typing import Any
 
 import diffrax
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -83,9 +84,20 @@ def _member_of_row(v, mechanism, names, config, ideal_config, deviation, events,
     return _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0, t1, start)
 
 
-def _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0, t1, start):
+def _member_replay_of_row(
+    v, mechanism, names, config, ideal_config, deviation, events, ts, t0, t1, start
+):
+    """``_member_of_row`` with the member's trajectory as well (``replay_member``)."""
+    return _member(
+        mechanism, names, config, ideal_config, deviation, events, v, ts, t0, t1, start, True
+    )
+
+
+def _member(
+    mechanism, names, config, ideal_config, deviation, events, v, ts, t0, t1, start, keep=False
+):
     """One member: its statistics, its contacts (located events, and penetrations on the grid in
-    case the event buffer overflows), outcome."""
+    case the event buffer overflows), outcome; with ``keep``, its trajectory as well."""
     m = with_parameters(mechanism, {n: v[k] for k, n in enumerate(names)})
     traj = simulate(
         m,
@@ -129,6 +141,8 @@ def _member(mechanism, names, config, ideal_config, deviation, events, v, ts, t0
     speed = None if m.driver is None else m.driver.constant_speed
     if speed is not None:  # the member's own crank period sets its impact/continuous threshold
         outcome["speed"] = jnp.asarray(speed, dtype=float)
+    if keep:
+        return stats, contacts, outcome, traj
     return stats, contacts, outcome
 
 
@@ -179,6 +193,158 @@ def _result_message(code: int, t_final: float) -> str:
     except Exception:  # message lookup is best effort; the code is what matters
         text = f"solver result code {code}"
     return f"solve failed at t = {t_final:.6g} s: {text}".replace("\n", " ")
+
+
+@dataclasses.dataclass
+class _Plan:
+    """An ensemble's checked inputs, shared by ``run_ensemble`` and ``replay_member``: one plan
+    gives both the same compiled program and the same chunks."""
+
+    mechanism: Mechanism
+    names: tuple[str, ...]
+    values: np.ndarray
+    config: SolverConfig
+    deviation: tuple[str, ...]
+    events: int
+    ts: np.ndarray
+    t0: float
+    t1: float
+    start: float
+    period: float | None
+    fraction: float
+    statistic_names: list[str]
+
+    def arguments(self, mechanism: Mechanism) -> tuple:
+        """The member function's arguments after its row (``_member_of_row``)."""
+        return (
+            mechanism,
+            self.names,
+            self.config,
+            solver_config("fast"),
+            self.deviation,
+            self.events,
+            jnp.asarray(self.ts),
+            jnp.asarray(self.t0, dtype=float),
+            jnp.asarray(self.t1, dtype=float),
+            jnp.asarray(self.start, dtype=float),
+        )
+
+    def batch(self, members: np.ndarray, chunk: int) -> np.ndarray:
+        """The rows of one chunk: these members' values, then nominal rows up to ``chunk``."""
+        mechanism = self.mechanism
+        base = np.asarray([float(np.asarray(get_parameter(mechanism, n))) for n in self.names])
+        batch = np.repeat(base[None, :], chunk, axis=0)
+        batch[: len(members)] = self.values[members]
+        return batch
+
+    def empty_result(self) -> EnsembleResult:
+        n = len(self.values)
+        return EnsembleResult(
+            names=self.names,
+            values=self.values,
+            statistics={k: np.full(n, np.nan) for k in self.statistic_names},
+            status=np.full(n, FAILED, dtype=object),
+            messages=[""] * n,
+            num_steps=np.zeros(n, dtype=np.int64),
+            wall_time_s=np.zeros(n),
+        )
+
+    def record(self, result, i, row, stats, contacts, outcome) -> None:
+        """Member ``i``'s results from row ``row`` of its chunk's outputs, into ``result``."""
+        _record(
+            result, i, row, stats, contacts, outcome, self.ts, self.start, self.period,
+            self.fraction,
+        )  # fmt: skip
+
+
+def _plan(
+    mechanism, values, t1, t0, statistics_start, num_points, solver, deviation, fraction, events
+) -> _Plan:
+    """Check ``run_ensemble``'s arguments and derive what its chunks need."""
+    names, vals = _check_values(mechanism, values)
+    if not (0.0 < fraction < 1.0):
+        raise EnsembleError(f"continuous_fraction must lie in (0, 1), got {fraction}.")
+    start = t0 if statistics_start is None else float(statistics_start)
+    if not (t0 <= start < t1):
+        raise EnsembleError(f"statistics_start must lie in [t0, t1) = [{t0}, {t1}), got {start}.")
+    config = solver_config(solver, mechanism)
+    available = signal_names(mechanism)
+    if deviation is None:
+        deviation = tuple(
+            s
+            for s in ("slider_a", f"{mechanism.driver.body}_torque" if mechanism.driver else "")
+            if s in available
+        )
+    deviation = tuple(deviation)
+    if not mechanism.clearance_joints:
+        deviation = ()
+    for s in deviation:
+        if s not in available:
+            raise EnsembleError(
+                f"deviation signal {s!r} is unknown; use some of {', '.join(available)}."
+            )
+    ts = np.linspace(t0, t1, num_points)
+    period = None
+    if mechanism.driver is not None:
+        speed = float(np.asarray(mechanism.driver.constant_speed))
+        period = 2.0 * math.pi / abs(speed) if speed else None
+    if events is None:
+        revolutions = (t1 - t0) / period if period else 1.0
+        events = max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions))
+    if int(events) != events or events < 1:
+        raise EnsembleError(
+            f"contact_events must be a positive integer (room for contacts per joint), got "
+            f"{events!r}."
+        )
+    events = int(events)
+
+    # statistic names, from an abstract evaluation of one member
+    shape_stats, _, _ = eqx.filter_eval_shape(
+        _member,
+        mechanism,
+        names,
+        config,
+        solver_config("fast"),
+        deviation,
+        events,
+        jnp.asarray(vals[0]),
+        jnp.asarray(ts),
+        jnp.asarray(t0),
+        jnp.asarray(t1),
+        jnp.asarray(start),
+    )
+    joints = [j.name for j in mechanism.clearance_joints]
+    return _Plan(
+        mechanism=mechanism,
+        names=names,
+        values=vals,
+        config=config,
+        deviation=deviation,
+        events=events,
+        ts=ts,
+        t0=float(t0),
+        t1=float(t1),
+        start=start,
+        period=period,
+        fraction=float(fraction),
+        statistic_names=list(shape_stats) + mode_statistic_names(joints),
+    )
+
+
+def _chunk_settings(settings: EnsembleSettings, left: int) -> EnsembleSettings:
+    """``settings`` for ``left`` members to solve: never pad a chunk beyond them (a small run, or
+    a resumed one)."""
+    if 0 < left < settings.chunk_size:
+        return dataclasses.replace(settings, chunk_size=left)
+    return settings
+
+
+def _next_chunk(settings, values, todo, finished, steps, chunk):
+    """The members of the next chunk and those left after it (``settings.order``: by expected
+    cost from the ``steps`` of the ``finished`` members, or by index)."""
+    if settings.order == "cost":
+        todo = cost_order(values, todo, np.flatnonzero(finished), steps)
+    return todo[:chunk], todo[chunk:]
 
 
 def run_ensemble(
@@ -238,70 +404,14 @@ def run_ensemble(
         EnsembleError: bad arguments, or ``out`` holds a run with another configuration.
         ModelError: an unknown parameter name.
     """
-    names, vals = _check_values(mechanism, values)
-    n = len(vals)
-    if not (0.0 < continuous_fraction < 1.0):
-        raise EnsembleError(f"continuous_fraction must lie in (0, 1), got {continuous_fraction}.")
-    start = t0 if statistics_start is None else float(statistics_start)
-    if not (t0 <= start < t1):
-        raise EnsembleError(f"statistics_start must lie in [t0, t1) = [{t0}, {t1}), got {start}.")
-    config = solver_config(solver, mechanism)
-    available = signal_names(mechanism)
-    if deviation is None:
-        deviation = tuple(
-            s
-            for s in ("slider_a", f"{mechanism.driver.body}_torque" if mechanism.driver else "")
-            if s in available
-        )
-    deviation = tuple(deviation)
-    if not mechanism.clearance_joints:
-        deviation = ()
-    for s in deviation:
-        if s not in available:
-            raise EnsembleError(
-                f"deviation signal {s!r} is unknown; use some of {', '.join(available)}."
-            )
-    ts = np.linspace(t0, t1, num_points)
-    period = None
-    if mechanism.driver is not None:
-        speed = float(np.asarray(mechanism.driver.constant_speed))
-        period = 2.0 * math.pi / abs(speed) if speed else None
-    if contact_events is None:
-        revolutions = (t1 - t0) / period if period else 1.0
-        contact_events = max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions))
-    if int(contact_events) != contact_events or contact_events < 1:
-        raise EnsembleError(
-            f"contact_events must be a positive integer (room for contacts per joint), got "
-            f"{contact_events!r}."
-        )
-    contact_events = int(contact_events)
-
-    # statistic names, from an abstract evaluation of one member
-    shape_stats, _, _ = eqx.filter_eval_shape(
-        _member,
-        mechanism,
-        names,
-        config,
-        solver_config("fast"),
-        deviation,
-        contact_events,
-        jnp.asarray(vals[0]),
-        jnp.asarray(ts),
-        jnp.asarray(t0),
-        jnp.asarray(t1),
-        jnp.asarray(start),
-    )
-    joints = [j.name for j in mechanism.clearance_joints]
-    stat_names = list(shape_stats) + mode_statistic_names(joints)
-    result = EnsembleResult(
-        names=names,
-        values=vals,
-        statistics={k: np.full(n, np.nan) for k in stat_names},
-        status=np.full(n, FAILED, dtype=object),
-        messages=[""] * n,
-        num_steps=np.zeros(n, dtype=np.int64),
-        wall_time_s=np.zeros(n),
-    )
+    plan = _plan(
+        mechanism, values, t1, t0, statistics_start, num_points, solver, deviation,
+        continuous_fraction, contact_events,
+    )  # fmt: skip
+    names, vals, n = plan.names, plan.values, len(plan.values)
+    config, deviation, contact_events = plan.config, plan.deviation, plan.events
+    start = plan.start
+    result = plan.empty_result()
     finished = np.zeros(n, dtype=bool)
 
     configuration = {
@@ -329,44 +439,23 @@ def run_ensemble(
         if why and not finished[i]:
             result.messages[i] = why
             finished[i] = True
-    base = np.asarray([float(np.asarray(get_parameter(mechanism, nm))) for nm in names])
 
-    ideal_config = solver_config("fast")
     todo = np.flatnonzero(~finished)
-    if 0 < len(todo) < settings.chunk_size:
-        # never pad a chunk beyond the members left (a small run, or a resumed one)
-        settings = dataclasses.replace(settings, chunk_size=len(todo))
+    settings = _chunk_settings(settings, len(todo))
     chunk = chunk_rows(settings)
     bar = progress_bar(settings.progress, n, "members")
     bar.update(int(finished.sum()))
     try:
         while len(todo):
-            if settings.order == "cost":
-                todo = cost_order(vals, todo, np.flatnonzero(finished), result.num_steps)
-            members, todo = todo[:chunk], todo[chunk:]
-            batch = np.repeat(base[None, :], chunk, axis=0)
-            batch[: len(members)] = vals[members]
+            members, todo = _next_chunk(settings, vals, todo, finished, result.num_steps, chunk)
+            batch = plan.batch(members, chunk)
             started = time.perf_counter()
             stats, pen, outcome = map_members(
-                _member_of_row,
-                (
-                    mechanism,
-                    names,
-                    config,
-                    ideal_config,
-                    deviation,
-                    contact_events,
-                    jnp.asarray(ts),
-                    jnp.asarray(t0, dtype=float),
-                    jnp.asarray(t1, dtype=float),
-                    jnp.asarray(start, dtype=float),
-                ),
-                batch,
-                settings=settings,
+                _member_of_row, plan.arguments(mechanism), batch, settings=settings
             )
             wall = (time.perf_counter() - started) / len(members)
             for row, i in enumerate(members):
-                _record(result, i, row, stats, pen, outcome, ts, start, period, continuous_fraction)
+                plan.record(result, i, row, stats, pen, outcome)
                 result.wall_time_s[i] = wall
             finished[members] = True
             if out_dir is not None:
@@ -379,6 +468,159 @@ def run_ensemble(
     if out_dir is not None:
         save(out_dir, table_name, configuration, result, finished)
     return result
+
+
+@dataclasses.dataclass
+class MemberReplay:
+    """One ensemble member solved again by ``replay_member``, with its trajectory.
+
+    Attributes:
+        index: the member's index in the ensemble.
+        row: its row as in the ensemble's table (``EnsembleResult.rows``: ``index``, drawn values,
+            statistics, ``num_steps``, ``status``, ``message``; ``wall_time_s`` is the replayed
+            chunk's wall time per member).
+        trajectory: its ``Trajectory`` (single, unbatched), from the same compiled batched solve
+            as its row. The row's statistics were computed inside that program;
+            ``trajectory_statistics`` recomputes them outside it, which may differ in the last
+            digits (measured: 1 ulp-level differences in some RMS values).
+        chunk: the members solved together with it, in lane order (the chunk is filled up to
+            ``chunk_size`` with nominal rows).
+        lane: its row within the chunk.
+        chunk_size: rows per vectorised solve (the compiled program's batch, before the split
+            over devices).
+        names: the drawn parameters' names.
+        exact_chunk: whether ``chunk`` is the ensemble's own chunk (rebuilt from the member order
+            and step counts), or the member alone with nominal rows (``order="cost"`` without
+            ``num_steps``; a member's result does not depend on its chunk mates: see
+            docs/ensembles.md, "Replaying a member").
+    """
+
+    index: int
+    row: dict[str, Any]
+    trajectory: Any
+    chunk: list[int]
+    lane: int
+    chunk_size: int
+    names: tuple[str, ...]
+    exact_chunk: bool
+
+    @property
+    def statistics(self) -> dict[str, float]:
+        """The member's statistics: the row without its index, drawn values and bookkeeping."""
+        skip = {"index", "num_steps", "wall_time_s", "status", "message", *self.names}
+        return {k: v for k, v in self.row.items() if k not in skip}
+
+    @property
+    def trajectory_statistics(self) -> dict[str, float]:
+        """``jaxclear.analysis.statistics`` of the trajectory, as floats."""
+        return {k: float(v) for k, v in statistics(self.trajectory).items()}
+
+
+def replay_member(
+    mechanism: Mechanism,
+    values: Mapping[str, Any],
+    t1: float,
+    member: int,
+    *,
+    num_steps: Sequence[int] | np.ndarray | None = None,
+    t0: float = 0.0,
+    statistics_start: float | None = None,
+    num_points: int = 721,
+    solver: "str | SolverConfig" = "auto",
+    deviation: Sequence[str] | None = None,
+    continuous_fraction: float = DEFAULT_CONTINUOUS_FRACTION,
+    contact_events: int | None = None,
+    settings: EnsembleSettings = EnsembleSettings(),
+) -> MemberReplay:
+    """Solve one member of an ensemble again, as ``run_ensemble`` solved it, with its trajectory.
+
+    The way to look at an outlier: the member's row says *that* it stands out, its trajectory
+    (plots, contacts, ``jaxclear.io.write_results``) shows *why*. A member solved alone by
+    ``simulate`` is another compiled program: its rounding differs, and a clearance joint's
+    impact sequence amplifies rounding, so its peaks may differ from the row by a factor of 2.
+    Here the member is solved by the ensemble's own batched program: the chunk that held it is
+    rebuilt (the same ``chunk_size``, devices and member order; with ``order="cost"`` the order
+    follows the ensemble's step counts, ``num_steps``) and solved again, and the member's row of
+    that chunk is taken. Its statistics equal the ensemble's row bitwise.
+
+    Args:
+        mechanism, values, t1: as given to ``run_ensemble`` (``montecarlo``: ``values =
+            draw(distributions, samples, seed)``; ``sweep``: ``{name: values}``).
+        member: the member's index (its ``index`` in the table).
+        num_steps: the ensemble's solver steps per member (``EnsembleResult.num_steps``, the
+            table's ``num_steps``). With ``settings.order == "cost"`` they decide the chunks;
+            without them the member is solved with nominal rows as chunk mates (the same
+            program; its result does not depend on its mates, measured: docs/ensembles.md).
+        t0, statistics_start, num_points, solver, deviation, continuous_fraction,
+        contact_events: as given to ``run_ensemble``; they must be the same.
+        settings: as given to ``run_ensemble`` (``chunk_size``, ``devices``, ``order``; ``out``
+            and ``progress`` are not used): the chunk size and the devices decide the compiled
+            program.
+
+    Returns:
+        A ``MemberReplay``: the row, the trajectory, the chunk.
+
+    Raises:
+        EnsembleError: bad arguments, a member outside the ensemble, or one whose drawn values
+            are not admissible (it was never solved).
+    """
+    plan = _plan(
+        mechanism, values, t1, t0, statistics_start, num_points, solver, deviation,
+        continuous_fraction, contact_events,
+    )  # fmt: skip
+    n = len(plan.values)
+    if isinstance(member, bool) or not isinstance(member, int | np.integer):
+        raise EnsembleError(f"member must be an integer index, got {member!r}.")
+    member = int(member)
+    if not 0 <= member < n:
+        raise EnsembleError(f"member {member} is outside the ensemble: give 0 to {n - 1}.")
+    bad = inadmissible_values(mechanism, plan.names, plan.values)
+    if bad[member]:
+        raise EnsembleError(
+            f"member {member} was never solved: {bad[member]}; there is nothing to replay."
+        )
+    steps = np.zeros(n, dtype=np.int64)
+    if num_steps is not None:
+        steps = np.asarray(num_steps)
+        if steps.shape != (n,):
+            raise EnsembleError(
+                f"num_steps must hold one step count per member ({n}), got shape {steps.shape}."
+            )
+        steps = steps.astype(np.int64)
+    finished = np.asarray([bool(why) for why in bad])
+    todo = np.flatnonzero(~finished)
+    settings = _chunk_settings(settings, len(todo))
+    chunk = chunk_rows(settings)
+    exact = settings.order == "index" or num_steps is not None
+    if exact:  # the run's schedule, from its step counts: no solve needed
+        while True:
+            members, todo = _next_chunk(settings, plan.values, todo, finished, steps, chunk)
+            if member in members:
+                break
+            finished[members] = True
+    else:
+        members = np.asarray([member])
+    lane = int(np.flatnonzero(members == member)[0])
+    started = time.perf_counter()
+    stats, contacts, outcome, trajectories = map_members(
+        _member_replay_of_row,
+        plan.arguments(mechanism),
+        plan.batch(members, chunk),
+        settings=settings,
+    )
+    result = plan.empty_result()
+    plan.record(result, member, lane, stats, contacts, outcome)
+    result.wall_time_s[member] = (time.perf_counter() - started) / len(members)
+    return MemberReplay(
+        index=member,
+        row=result.rows()[member],
+        trajectory=jax.tree_util.tree_map(jnp.asarray, trajectories.member(lane)),
+        chunk=[int(i) for i in members],
+        lane=lane,
+        chunk_size=chunk,
+        names=plan.names,
+        exact_chunk=exact,
+    )
 
 
 def mode_statistic_names(joints: Sequence[str]) -> list[str]:
