@@ -22,6 +22,7 @@ from ._core._executable_cache import disable_compilation_cache as disable_compil
 from ._core._executable_cache import enable_compilation_cache as enable_compilation_cache  # noqa: E402
 from .analysis._signals import signal_names as signal_names  # noqa: E402
 from .analysis._signals import signals as signals  # noqa: E402
+from .contact import Lubrication as Lubrication  # noqa: E402
 from .io._measurements import Measurements as Measurements  # noqa: E402
 from .model import AbstractDriver as AbstractDriver  # noqa: E402
 from .model import AbstractForceElement as AbstractForceElement  # noqa: E402

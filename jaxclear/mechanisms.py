@@ -54,7 +54,8 @@ def slider_crank(
             ``ClearanceJoint.replacing``: ``clearance`` (m, default 0.5 mm with R_B = 10 mm),
             ``journal_body`` (the body carrying the pin; default the joint's second body, e.g.
             ``"slider"`` at B), ``geometry``, ``contact_law``, ``friction_law``, ``smoothing``,
-            ``initial_eccentricity``.
+            ``initial_eccentricity``, ``lubrication`` (a ``jaxclear.Lubrication`` film,
+            docs/model.md §3b; e.g. ``clearance_joints={"B": {"lubrication": film}}``).
 
     Returns:
         The ``Mechanism`` with bodies ``crank``, ``rod``, ``slider``; ideal joints ``O``, ``A``,
@@ -185,6 +186,7 @@ CLEARANCE_OPTIONS = frozenset(
         "friction_law",
         "smoothing",
         "initial_eccentricity",
+        "lubrication",
     }
 )
 """Keyword arguments of ``ClearanceJoint.replacing`` accepted as shared or per-joint options."""

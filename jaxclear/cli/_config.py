@@ -139,7 +139,11 @@ def read_config(path: str) -> ConfigFile:
             )
         for key, value in table.items():
             s = BY_LABEL.get((section, key))
-            if section == "clearance" and isinstance(value, dict) and (s is None or not s.shared):
+            if (
+                section == "clearance"
+                and isinstance(value, dict)
+                and (s is None or not (s.shared or s.kind is dict))
+            ):
                 joint_tables[key] = _joint_table(path, key, value)
                 continue
             if s is None or not s.shared:
@@ -176,6 +180,12 @@ def _joint_table(path: str, joint: str, table: dict) -> dict:
                 f"[clearance.{joint}] {key} in {path!r} must be {type_name(s)}, got {value!r}"
             )
         check_value(s, value, f"[clearance.{joint}] {key} in {path!r}")
+        if key == "lubrication":
+            # its own keys and ranges, checked here so that a table of a joint the run leaves
+            # ideal (--clearance-joints) is checked too (imported here: that module reads ours)
+            from ._mechanism_config import lubrication_from_table
+
+            lubrication_from_table(f"[clearance.{joint}] lubrication", value)
     return dict(table)
 
 

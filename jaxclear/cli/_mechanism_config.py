@@ -37,9 +37,18 @@ import dataclasses
 import math
 from typing import Any
 
+import equinox as eqx
+
 import jaxclear
 
-from ..contact import CONTACT_LAWS, ContactGeometry, Smoothing, contact_law_from_name
+from ..contact import (
+    CONTACT_LAWS,
+    LUBRICATION_THEORIES,
+    ContactGeometry,
+    Lubrication,
+    Smoothing,
+    contact_law_from_name,
+)
 from ..friction import FRICTION_LAWS, friction_law_from_name
 from ._common import UsageError, one_line
 from ._config import Settings
@@ -143,6 +152,70 @@ TABLES: dict[str, tuple[Field, ...]] = {
 
 LOAD_KEYS = {"force": ("type", "at", "force"), "torque": ("type", "body", "torque")}
 
+LUBRICATION_KEYS: tuple[Field, ...] = (
+    Field("viscosity", "number", "Pa s", "dynamic viscosity of the lubricant (> 0)"),
+    Field("length", "number", "m", "bearing length L (> 0)"),
+    Field("theory", "string", "", "short (Ocvirk) or long (Sommerfeld) bearing", False, "short"),
+    Field(
+        "transition_eccentricity",
+        "number",
+        "",
+        "eccentricity ratio ε₀ in (0, 1) where the film starts to hand over to dry contact",
+        False,
+        "0.9",
+    ),
+    Field(
+        "transition_width",
+        "number",
+        "",
+        "width Δ of the film-to-dry blend (ε₀ + Δ <= 1)",
+        False,
+        "0.1",
+    ),
+    Field("petroff", "bool", "", "add the Petroff shear torque", False, "false"),
+)
+"""Keys of a per-joint ``lubrication = {...}`` table (``[clearance.<joint>]``; docs/model.md §3b)."""
+
+
+def lubrication_from_table(where: str, table) -> Lubrication:
+    """The ``Lubrication`` of a ``lubrication = { viscosity = ..., length = ..., ... }`` table.
+
+    Raises:
+        UsageError: not a table, an unknown or missing key, a value of the wrong type or out of
+            range (one line, naming ``where`` and the key).
+    """
+    allowed = tuple(f.key for f in LUBRICATION_KEYS)
+    required = tuple(f.key for f in LUBRICATION_KEYS if f.required)
+    _check_keys(where, table, allowed, required)
+    values: dict[str, Any] = {}
+    for key, value in table.items():
+        if key == "theory":
+            if value not in LUBRICATION_THEORIES:
+                _fail(
+                    f"{where} theory",
+                    f"must be one of {', '.join(map(repr, LUBRICATION_THEORIES))}, got {value!r}",
+                )
+            values[key] = value
+        elif key == "petroff":
+            if not isinstance(value, bool):
+                _fail(f"{where} petroff", f"must be true or false, got {value!r}")
+            values[key] = value
+        else:
+            values[key] = _number(f"{where} {key}", value)
+    for key in ("viscosity", "length", "transition_width"):
+        if key in values and not values[key] > 0:
+            _fail(f"{where} {key}", f"must be positive, got {values[key]}")
+    e0 = values.get("transition_eccentricity")
+    if e0 is not None and not 0 < e0 < 1:
+        _fail(
+            f"{where} transition_eccentricity",
+            f"must be in (0, 1), got {e0}; the film acts below it and the wall is at 1",
+        )
+    try:
+        return Lubrication(**values)
+    except (jaxclear.ModelError, ValueError, TypeError) as e:
+        raise UsageError(f"{where}: {one_line(e)}") from None
+
 
 # --- benchmark mechanisms -----------------------------------------------------------------------
 
@@ -164,9 +237,24 @@ def build_mechanism(settings: Settings, clearance: bool = True):
     if not names:
         return ideal
     spec = {joint: joint_options(settings, joint) for joint in names}
-    if name == "custom":
-        return _custom(settings, spec)
-    return _benchmark(settings, spec)
+    films = {joint: spec[joint].pop("lubrication", None) for joint in names}
+    mechanism = _custom(settings, spec) if name == "custom" else _benchmark(settings, spec)
+    return with_lubrication(mechanism, films)
+
+
+def with_lubrication(mechanism, films: dict):
+    """``mechanism`` with the clearance joints named in ``films`` given their ``Lubrication``
+    (``None``: the joint stays dry)."""
+    for k, joint in enumerate(mechanism.clearance_joints):
+        film = films.get(joint.name)
+        if film is not None:
+            mechanism = eqx.tree_at(
+                lambda m, k=k: m.clearance_joints[k].lubrication,
+                mechanism,
+                film,
+                is_leaf=lambda x: x is None,
+            )
+    return mechanism
 
 
 def _benchmark(settings: Settings, spec: dict):
@@ -304,6 +392,8 @@ def joint_options(settings: Settings, joint: str) -> dict:
     )
     if c.get("journal_body") is not None:
         options["journal_body"] = c["journal_body"]
+    if c.get("lubrication") is not None:
+        options["lubrication"] = lubrication_from_table(where("lubrication"), c["lubrication"])
     return options
 
 
@@ -537,7 +627,8 @@ def _custom(settings: Settings, spec: dict | None = None):
 
 
 def markdown_reference() -> str:
-    """The custom-mechanism tables (``TABLES``) as Markdown (embedded verbatim in docs/cli.md)."""
+    """The custom-mechanism tables (``TABLES``) and the keys of a per-joint ``lubrication`` table
+    (``LUBRICATION_KEYS``) as Markdown (embedded verbatim in docs/cli.md)."""
     out = []
     for table, fields in TABLES.items():
         out += [
@@ -552,4 +643,13 @@ def markdown_reference() -> str:
                 required = f"for type {'force' if f.key in LOAD_KEYS['force'] else 'torque'}"
             out.append(f"| `{f.key}` | {f.unit} | {required} | {f.help} |")
         out.append("")
+    out += [
+        "### `lubrication = { ... }` in `[clearance.<joint>]`",
+        "",
+        "| key | unit | required | description |",
+        "| --- | --- | --- | --- |",
+    ]
+    for f in LUBRICATION_KEYS:
+        required = "yes" if f.required else f"no (default {f.default})"
+        out.append(f"| `{f.key}` | {f.unit} | {required} | {f.help} |")
     return "\n".join(out).rstrip() + "\n"

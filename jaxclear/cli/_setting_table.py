@@ -54,7 +54,9 @@ class Setting:
     Attributes:
         section: TOML table (``mechanism``, ``clearance``, ``simulation``, ``solver``, ``output``).
         key: TOML key; also the name used in run.json.
-        kind: ``float``, ``int``, ``str``, ``bool``, or ``"gravity"`` (bool or a number).
+        kind: ``float``, ``int``, ``str``, ``bool``, ``"gravity"`` (bool or a number), or ``dict``
+            (a TOML inline table with its own schema, checked where it is read:
+            ``lubrication``, ``_mechanism_config.LUBRICATION_KEYS``).
         default: built-in default, or a mapping mechanism name -> default where it differs per
             mechanism (``None``: decided later, e.g. by the solver preset or the law).
         unit: unit shown in help (``""`` if none).
@@ -339,6 +341,17 @@ SETTINGS: tuple[Setting, ...] = (
         "",
         "which of the joint's two bodies carries the pin (journal); the other carries the hole (bearing); "
         "default: the joint's second body (slider_crank B: slider)",
+        shared=False,
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "lubrication",
+        dict,
+        None,
+        "",
+        "hydrodynamic film of a lubricated joint, an inline table { viscosity = ..., length = ..., "
+        'theory = "short" } (its keys: docs/cli.md; the model: docs/model.md §3b); absent: a dry joint',
         shared=False,
         per_joint=True,
     ),

@@ -24,6 +24,8 @@ def format_default(s: Setting) -> str:
         return "preset's: " + ", ".join(
             f"{'/'.join(names)} {value}" for value, names in by_value.items()
         )
+    if s.default is None and s.kind is dict:
+        return "none"
     if s.default is None:
         return "see description"
     if isinstance(s.default, Mapping):
@@ -80,6 +82,7 @@ def type_name(s: Setting) -> str:
         str: "a string",
         bool: "true or false",
         "gravity": "true, false or a number",
+        dict: "an inline table { key = value, ... }",
     }[s.kind]
 
 

@@ -17,5 +17,10 @@ from ._foundation import ElasticFoundationDiscrete as ElasticFoundationDiscrete
 from ._hertz import Hertz as Hertz
 from ._hybrid import Hybrid as Hybrid
 from ._impact import AdamsImpact as AdamsImpact
+from ._lubrication import LUBRICATION_THEORIES as LUBRICATION_THEORIES
+from ._lubrication import FilmForce as FilmForce
+from ._lubrication import Lubrication as Lubrication
+from ._lubrication import film_components as film_components
+from ._lubrication import film_force as film_force
 from ._registry import CONTACT_LAWS as CONTACT_LAWS
 from ._registry import contact_law_from_name as contact_law_from_name

@@ -17,8 +17,9 @@ import numpy as np
 from ..model._clearance import ClearanceJoint
 from . import _clearance as clearance
 
-_LAW_FIELDS = ("geometry", "contact_law", "friction_law", "smoothing")
-"""``ClearanceJoint`` fields whose structure (classes, static options) must match within a group."""
+_LAW_FIELDS = ("geometry", "contact_law", "friction_law", "smoothing", "lubrication")
+"""``ClearanceJoint`` fields whose structure (classes, static options) must match within a group
+(``lubrication``: dry or lubricated, and the film's static theory and Petroff option)."""
 
 
 def _signature(element: ClearanceJoint):

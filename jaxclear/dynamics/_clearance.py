@@ -20,6 +20,7 @@ from jaxtyping import Array, Float
 from .._core._geometry import dot2, perp, point_position, point_velocity
 from .._core._smooth import safe_norm
 from ..contact._base import ContactKinematics
+from ..contact._lubrication import film_force
 from ..model._clearance import ClearanceJoint
 from ._impact_memory import (
     impact_velocity,
@@ -68,12 +69,19 @@ class ContactForces(eqx.Module):
         friction_force: the friction law's force on the journal along t, N.
         tangential_force: F_T = friction plus the contact law's own tangential part, N.
         force_on_journal: −F_N n + F_T t (global components), N; the bearing gets the opposite.
+        film_force: a lubricated joint's hydrodynamic force on the journal (global components),
+            N, acting at the journal centre (the bearing gets the opposite at the same point);
+            ``None`` for a dry joint.
+        film_torque: a lubricated joint's Petroff torque on the journal, N m (the bearing gets
+            the opposite); ``None`` for a dry joint.
     """
 
     normal_force: Float[Array, ""]
     friction_force: Float[Array, ""]
     tangential_force: Float[Array, ""]
     force_on_journal: Float[Array, "2"]
+    film_force: Float[Array, "2"] | None = None
+    film_torque: Float[Array, ""] | None = None
 
 
 class ClearanceOutputs(eqx.Module):
@@ -91,6 +99,7 @@ class ClearanceOutputs(eqx.Module):
         tangential_force: F_T, N. slip_velocity: v_T, m/s.
         impact_velocity: the memory m of the normal approach speed, m/s.
         friction_state: the friction law's first internal state (LuGre z, m), or ``None``.
+        film_force_x, film_force_y: a lubricated joint's film force on the journal, N, or ``None``.
     """
 
     ecc_x: Float[Array, "*shape"]
@@ -103,6 +112,8 @@ class ClearanceOutputs(eqx.Module):
     slip_velocity: Float[Array, "*shape"]
     impact_velocity: Float[Array, "*shape"]
     friction_state: Float[Array, "*shape"] | None = None
+    film_force_x: Float[Array, "*shape"] | None = None
+    film_force_y: Float[Array, "*shape"] | None = None
 
     def keys(self) -> tuple[str, ...]:
         """Names of the outputs present (fields that are not ``None``), in field order."""
@@ -223,11 +234,28 @@ def local_contact_forces(
     friction = joint.friction_law.force(k.slip_velocity, normal, state[1:], joint.smoothing)
     tangential = friction + law_tangential
     on_journal = -normal * k.normal + tangential * k.tangent
+    film, torque = None, None
+    if joint.lubrication is not None:
+        # the film (docs/model.md §3b); the dry law above is exactly zero until the wall, where
+        # the film's blend weight has reached 0 (ε₀ + Δ <= 1), so it needs no weight of its own
+        rate = k.penetration_rate * k.normal + k.tangential_rate * k.tangent
+        f = film_force(
+            joint.lubrication,
+            k.eccentricity_vector,
+            rate,
+            qdj[2],
+            qdb[2],
+            joint.geometry.journal_radius,
+            joint.geometry.clearance,
+        )
+        film, torque = f.force, f.torque
     return k, ContactForces(
         normal_force=normal,
         friction_force=friction,
         tangential_force=tangential,
         force_on_journal=on_journal,
+        film_force=film,
+        film_torque=torque,
     )
 
 
@@ -256,6 +284,13 @@ def local_force_and_cache(joint: ClearanceJoint, qb, qdb, qj, qdj, state, gamma_
     fj = f.force_on_journal
     on_journal = _body_wrench(qj, k.journal_contact_point, fj)
     on_bearing = _body_wrench(qb, k.bearing_contact_point, -fj)
+    if f.film_force is not None:
+        # film force at the journal centre, its reaction on the bearing at the same point (no net
+        # moment from the pair); Petroff torque on the journal, its opposite on the bearing
+        centre = point_position(qj, 0, joint.journal_point)
+        couple = jnp.stack([0.0, 0.0, f.film_torque])
+        on_journal = on_journal + _body_wrench(qj, centre, f.film_force) + couple
+        on_bearing = on_bearing + _body_wrench(qb, centre, -f.film_force) - couple
     return on_bearing, on_journal, (k, f), stage
 
 
@@ -280,9 +315,19 @@ def generalized_force(joint: ClearanceJoint, index: Index, q, qd, state) -> Floa
 
 # --- internal states ---------------------------------------------------------------------------------
 def initial_state(joint: ClearanceJoint, index: Index, q, qd) -> Float[Array, " s"]:
-    """[memory, friction states] at the start: the memory starts at the initial δ̇ (0 in offset form)."""
+    """[memory, friction states] at the start.
+
+    The memory starts at the initial δ̇, or at max(δ̇, v₀) where the joint's
+    ``initial_impact_velocity`` v₀ is positive (a journal started on its wall: docs/model.md
+    §5c); in offset form u = m − δ̇, i.e. 0 or max(0, v₀ − δ̇). v₀ = 0 gives
+    exactly the initial δ̇ (``where``, so the default start is unchanged to the last bit).
+    """
     rate = kinematics(joint, index, q, qd).penetration_rate
-    m0 = jnp.zeros_like(rate) if joint.memory_offset else rate
+    v0 = joint.initial_impact_velocity
+    if joint.memory_offset:
+        m0 = jnp.where(v0 > 0, jnp.maximum(v0 - rate, 0.0), jnp.zeros_like(rate))
+    else:
+        m0 = jnp.where(v0 > 0, jnp.maximum(rate, v0), rate)
     return jnp.concatenate([jnp.reshape(m0, (1,)), joint.friction_law.initial_state()])
 
 
@@ -403,4 +448,6 @@ def outputs(joint: ClearanceJoint, index: Index, q, qd, state) -> ClearanceOutpu
         slip_velocity=k.slip_velocity,
         impact_velocity=memory(state[0], k.penetration_rate, joint.memory_offset),
         friction_state=state[1] if joint.friction_law.num_states else None,
+        film_force_x=None if f.film_force is None else f.film_force[0],
+        film_force_y=None if f.film_force is None else f.film_force[1],
     )

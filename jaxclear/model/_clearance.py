@@ -16,6 +16,7 @@ from jaxtyping import Array, ArrayLike, Float
 
 from .._core._checks import (
     check_finite,
+    check_nonnegative,
     check_open_interval,
     check_positive,
     check_shape,
@@ -24,6 +25,7 @@ from .._core._checks import (
 from .._core._errors import ModelError
 from ..contact import Hybrid
 from ..contact._base import AbstractContactLaw, ContactGeometry, Smoothing
+from ..contact._lubrication import Lubrication
 from ..friction import LuGre
 from ..friction._base import AbstractFrictionLaw
 from ._element import AbstractStateElement
@@ -53,6 +55,14 @@ class ClearanceJoint(AbstractStateElement):
         memory_offset: carry the impact memory as u = m − δ̇ instead of m (static; set inside the
             solve by ``lawson-tsit5`` through ``Mechanism.with_memory_offset``, see
             ``_impact_memory.py`` beside the equations of motion).
+        lubrication: a hydrodynamic film in the clearance (``jaxclear.contact.Lubrication``:
+            viscosity, bearing length, short/long theory, blend to dry contact; docs/model.md
+            §3b), or ``None`` (default) for a dry joint. The film's force acts at the journal
+            centre; the dry contact law and friction take over at the wall.
+        initial_impact_velocity: v₀ ≥ 0, m/s: the impact-velocity memory starts at max(δ̇(t0), v₀)
+            for v₀ > 0, at δ̇(t0) for v₀ = 0 (default: a journal that starts off the wall, whose
+            memory tracks δ̇ in free flight anyway). For a journal that starts on its wall
+            (``jaxclear.wall_start`` sets it; docs/model.md §5c).
     """
 
     name: str = eqx.field(static=True)
@@ -66,12 +76,22 @@ class ClearanceJoint(AbstractStateElement):
     smoothing: Smoothing = eqx.field(default_factory=Smoothing)
     initial_eccentricity: Float[Array, "2"] = eqx.field(converter=_array, default=(0.0, 0.0))
     memory_offset: bool = eqx.field(static=True, default=False)
+    lubrication: Lubrication | None = None
+    initial_impact_velocity: Float[Array, ""] = eqx.field(converter=_array, default=0.0)
 
     def __check_init__(self):
         owner = f"ClearanceJoint {self.name!r}"
         for attr in ("bearing_point", "journal_point", "initial_eccentricity"):
             check_shape(owner, attr, getattr(self, attr), (2,))
             check_finite(owner, attr, getattr(self, attr))
+        check_shape(owner, "initial_impact_velocity", self.initial_impact_velocity, ())
+        check_nonnegative(
+            owner,
+            "initial_impact_velocity",
+            self.initial_impact_velocity,
+            "m/s",
+            "pass 0 (the memory starts at the initial penetration rate) or a speed in m/s",
+        )
         g = self.geometry
         check_positive(owner, "bearing_radius", g.bearing_radius, "m")
         check_positive(owner, "journal_radius", g.journal_radius, "m")
@@ -103,6 +123,11 @@ class ClearanceJoint(AbstractStateElement):
         if not isinstance(self.friction_law, AbstractFrictionLaw):
             raise TypeError(
                 f"{owner}: friction_law must be an AbstractFrictionLaw, got {type(self.friction_law).__name__}."
+            )
+        if self.lubrication is not None and not isinstance(self.lubrication, Lubrication):
+            raise TypeError(
+                f"{owner}: lubrication must be a jaxclear.contact.Lubrication or None, got "
+                f"{type(self.lubrication).__name__}."
             )
         if all(
             is_concrete(x) for x in (self.initial_eccentricity, g.bearing_radius, g.journal_radius)

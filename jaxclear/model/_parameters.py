@@ -13,8 +13,10 @@ Names (``parameter_names(mechanism)`` lists those of a given mechanism):
   ``J.young_modulus`` (Pa, both materials), ``J.poisson_ratio`` (both), ``J.bearing_young``,
   ``J.journal_young``, ``J.bearing_poisson``, ``J.journal_poisson``; every scalar array field of its
   contact law (``J.restitution``, ``J.stiffness`` when given, ...), of its friction law
-  (``J.friction_coefficient``, ``J.bristle_stiffness``, ...) and of its ``Smoothing``
-  (``J.penetration_width``, ...);
+  (``J.friction_coefficient``, ``J.bristle_stiffness``, ...), of its ``Smoothing``
+  (``J.penetration_width``, ...) and, for a lubricated joint, of its ``Lubrication``
+  (``J.viscosity``, ``J.transition_eccentricity``, ``J.transition_width``, and the bearing length
+  as ``J.lubrication.length``, since ``J.length`` is the pin length);
 - per force element ``F``: its scalar fields (``F.stiffness``, ``F.damping``, ``F.free_length``,
   ``F.torque``);
 - ``baumgarte_alpha``, ``baumgarte_beta`` (1/s).
@@ -99,6 +101,9 @@ _FIELD_INFO = {
     "damping": ("N s/m", (0.0, math.inf), "damping"),
     "free_length": ("m", (0.0, math.inf), "free length"),
     "torque": ("N m", UNBOUNDED, "applied torque"),
+    "viscosity": ("Pa s", POSITIVE, "lubricant viscosity"),
+    "transition_eccentricity": ("", (0.0, 1.0), "eccentricity ratio where the film starts to fade"),
+    "transition_width": ("", (0.0, 1.0), "width of the film-to-dry blend in eccentricity ratio"),
 }
 
 
@@ -270,7 +275,10 @@ def _clearance_entries(mechanism: Mechanism) -> list[_Entry]:
                 )
             )
         taken = {e.info.name for e in entries}
-        for part in ("contact_law", "friction_law", "smoothing"):
+        parts = ("contact_law", "friction_law", "smoothing")
+        if joint.lubrication is not None:
+            parts += ("lubrication",)
+        for part in parts:
             for field in _scalar_fields(getattr(joint, part)):
                 name = f"{J}.{field}"
                 if name in taken:

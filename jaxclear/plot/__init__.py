@@ -40,8 +40,11 @@ from ._runs import MAIN_STYLE as MAIN_STYLE
 from ._runs import MODE_STYLE as MODE_STYLE
 from ._runs import REFERENCE_STYLE as REFERENCE_STYLE
 from ._runs import STANDARD_PLOTS as STANDARD_PLOTS
+from ._runs import lubricated_joint_names as lubricated_joint_names
 from ._runs import plot_constraint_violation as plot_constraint_violation
 from ._runs import plot_contact_forces as plot_contact_forces
+from ._runs import plot_eccentricity_orbit as plot_eccentricity_orbit
+from ._runs import plot_film_forces as plot_film_forces
 from ._runs import plot_joint_forces as plot_joint_forces
 from ._runs import plot_mode_timeline as plot_mode_timeline
 from ._runs import plot_orbit as plot_orbit

@@ -1,6 +1,7 @@
 """Plots of one run (a single ``Trajectory``): any output column against the crank angle or time,
-the constraint violation, the clearance joints' orbits and contact forces, the ideal joints'
-forces, the contact-mode timeline, and the standard PNGs the ``run`` command writes.
+the constraint violation, the clearance joints' orbits and contact forces, the lubricated joints'
+orbits in eccentricity ratios and film forces, the ideal joints' forces, the contact-mode
+timeline, and the standard PNGs the ``run`` command writes.
 """
 
 from collections.abc import Sequence
@@ -221,6 +222,111 @@ def plot_orbit(traj, joint: str, *, ax=None) -> Figure:
     return fig
 
 
+def lubricated_joint_names(traj) -> list[str]:
+    """Names of ``traj``'s lubricated clearance joints (those with film-force outputs), in the
+    mechanism's order."""
+    return [n for n in clearance_joint_names(traj) if "film_force_x" in traj.clearance[n]]
+
+
+def _clearance_joint(traj, joint: str):
+    joints = traj.mechanism.clearance_joints
+    return joints[[j.name for j in joints].index(joint)]
+
+
+def plot_eccentricity_orbit(traj, joint: str, *, ax=None) -> Figure:
+    """Journal-centre orbit of a clearance joint in eccentricity ratios ε = e/c.
+
+    The bearing wall is the circle ε = 1 (solid). For a lubricated joint (docs/model.md §3b) the
+    circle ε = ε₀ where the film starts to hand over to the dry contact law is drawn dashed, and
+    ε₀ + Δ, from where the dry law acts alone, dotted if it lies inside the wall. Instants with
+    penetration (ε > 1, the dry law acting) are drawn on top in a second colour.
+    """
+    fig, ax = _new_axes(ax)
+    out = traj.clearance[joint]
+    element = _clearance_joint(traj, joint)
+    c = float(element.geometry.clearance)
+    ex, ey = np.asarray(out["ecc_x"]) / c, np.asarray(out["ecc_y"]) / c
+    circle = np.linspace(0, 2 * np.pi, 361)
+    ax.plot(np.cos(circle), np.sin(circle), color="k", linewidth=1.0, label="wall, ε = 1")
+    film = element.lubrication
+    if film is not None:
+        e0 = float(film.transition_eccentricity)
+        e1 = e0 + float(film.transition_width)
+        ax.plot(
+            e0 * np.cos(circle),
+            e0 * np.sin(circle),
+            color="0.4",
+            linestyle="--",
+            linewidth=1.0,
+            label=f"film fades out, ε₀ = {e0:g}",
+        )
+        if e1 < 1.0 - 1e-9:
+            ax.plot(
+                e1 * np.cos(circle),
+                e1 * np.sin(circle),
+                color="0.4",
+                linestyle=":",
+                linewidth=1.0,
+                label=f"dry only, ε₀ + Δ = {e1:g}",
+            )
+    ratio = np.hypot(ex, ey)
+    peak = float(np.max(ratio)) if ratio.size else 0.0
+    ax.plot(ex, ey, color="C0", linewidth=0.8, label=f"journal, max ε = {peak:.3g}")
+    contact = np.asarray(out["penetration"]) > 0
+    ax.plot(ex[contact], ey[contact], ".", color="C3", markersize=2, label="in contact")
+    ax.set_aspect("equal")
+    lim = 1.15 * max(1.0, peak)
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(-lim, lim)
+    ax.set_xlabel("Eccentricity ratio εx = ex / c")
+    ax.set_ylabel("Eccentricity ratio εy = ey / c")
+    kind = "lubricated " if film is not None else ""
+    ax.set_title(f"Journal orbit at {kind}joint {joint} (c = {c * 1e3:g} mm)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small")
+    return fig
+
+
+def plot_film_forces(traj, *, ax=None) -> Figure:
+    """Film force magnitude of every lubricated clearance joint against the driven angle.
+
+    Each joint's dry contact normal force is drawn thin and dashed in the same colour: the film
+    carries the load while the journal stays inside ε₀ + Δ, the dry law once it reaches the wall
+    (docs/model.md §3b). Both are taken at the saved instants.
+
+    Raises:
+        ValueError: ``traj`` has no lubricated joint, or its mechanism no driver.
+    """
+    names = lubricated_joint_names(traj)
+    if not names:
+        raise ValueError(
+            "the trajectory has no lubricated clearance joint (ClearanceJoint.lubrication); "
+            "plot_contact_forces draws the dry contact forces."
+        )
+    fig, ax = _new_axes(ax)
+    columns = column_map(traj)
+    for k, name in enumerate(names):
+        angle, fx = _curve(traj, f"{name}_film_force_x", "angle")
+        film = np.hypot(fx.values, columns[f"{name}_film_force_y"].values)
+        ax.plot(angle.values, film, color=f"C{k}", linewidth=1.2, label=f"joint {name} film")
+        ax.plot(
+            angle.values,
+            columns[f"{name}_normal_force"].values,
+            color=f"C{k}",
+            linewidth=0.8,
+            linestyle="--",
+            alpha=0.7,
+            label=f"joint {name} dry contact normal force",
+        )
+        _angle_ticks(ax, angle.values)
+    ax.set_xlabel(_angle_label(traj))
+    ax.set_ylabel("Force (N)")
+    ax.set_title(f"Hydrodynamic film force |F|{_speed_label(traj)}")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    return fig
+
+
 def plot_contact_forces(traj, *, ax=None) -> Figure:
     """Normal contact force of every clearance joint against crank angle.
 
@@ -410,7 +516,9 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
     <driven>_torque.png, <body>_angle.png and <body>_angular_acceleration.png per other body and
     joint_forces.png (ideal revolute joints); always constraint_violation.png (against time, log
     axis); with clearance joints also normal_force.png (against the driven angle) and
-    orbit_<joint>.png per joint. Plots whose quantity the mechanism lacks (no driver) are skipped.
+    orbit_<joint>.png per joint; with lubricated joints also film_force.png (film force
+    magnitude against the driven angle) and film_orbit_<joint>.png per lubricated joint (the orbit
+    in ε = e/c inside the wall ε = 1, with the film's transition circle ε₀). Plots whose quantity the mechanism lacks (no driver) are skipped.
     The y-ranges follow the instants in ``traj``: pass the kept window (``jaxclear.solve.window``) to
     leave a start-up transient out.
 
@@ -450,6 +558,12 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
         written.append(save_figure(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
         for name in clearance_joint_names(traj):
             written.append(save_figure(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))
+        lubricated = lubricated_joint_names(traj)
+        if lubricated:
+            written.append(save_figure(plot_film_forces(traj), out_dir, "film_force.png", dpi))
+        for name in lubricated:
+            fig = plot_eccentricity_orbit(traj, name)
+            written.append(save_figure(fig, out_dir, f"film_orbit_{name}.png", dpi))
     return written
 
 

@@ -169,6 +169,14 @@ CLEARANCE_OUTPUTS = {
     "slip_velocity": ("m/s", "relative tangential (slip) velocity"),
     "impact_velocity": ("m/s", "impact-velocity memory m = δ̇ + u (latched at contact onset)"),
     "friction_state": ("m", "friction-law internal state (LuGre bristle deflection z)"),
+    "film_force_x": (
+        "N",
+        "hydrodynamic film force on the journal, x component (lubricated joints)",
+    ),
+    "film_force_y": (
+        "N",
+        "hydrodynamic film force on the journal, y component (lubricated joints)",
+    ),
 }
 
 
