@@ -600,8 +600,8 @@ SETTINGS: tuple[Setting, ...] = (
         "centred",
         "",
         "initial journal positions: centred (eccentricity 0, as measured data may begin) or wall (on the "
-        "bearing wall, pushed along the ideal joint's reaction: jaxclear.wall_start; no impact has happened, "
-        "so the damped contact laws see the minimum impact velocity and damp heavily while contact lasts)",
+        "bearing wall, pushed along the ideal joint's reaction: jaxclear.wall_start; no hysteresis damping "
+        "until the journal first leaves the wall, docs/model.md §5c)",
         "--start",
         choices=STARTS,
     ),
