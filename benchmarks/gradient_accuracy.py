@@ -26,8 +26,9 @@ samples inside it). Printed per window and parameter:
   agree; over a whole revolution the three-joint mechanisms are chaotic and they do not;
 - relative errors against the central difference of the middle step of reverse mode
   (``jax.vjp``, ``config.reverse_adjoint()``) and forward mode (``jax.jacfwd``,
-  ``adjoint="forward"``) at ``jaxclear.gradient_solver`` settings, and at the defaults (solver
-  ``"auto"``, rtol 1e-6, and simulate's default adjoints) unless ``--no-default``.
+  ``adjoint="forward"``) at ``jaxclear.gradient_solver`` settings (unless ``--only-default``), and
+  at the defaults (solver ``"auto"``, rtol 1e-6, and simulate's default adjoints: the
+  error-controlled sensitivities) unless ``--no-default``.
 
 ``--checkpoints 30,300,1000,default,199999`` instead compares reverse-mode gradients of the first
 case's loss over the first window with these numbers of checkpoints (``default``: diffrax's, about
@@ -140,6 +141,11 @@ def main():
     parser.add_argument("--steps", default="1e-5,1e-6,1e-7", help="relative FD steps (3)")
     parser.add_argument("--no-default", action="store_true", help="skip the default settings")
     parser.add_argument(
+        "--only-default",
+        action="store_true",
+        help="skip the gradient_solver settings (only the default settings against the reference)",
+    )
+    parser.add_argument(
         "--checkpoints",
         default="",
         help="instead: reverse-mode gradients of the first case's loss over the first window "
@@ -167,7 +173,19 @@ def main():
         checkpoint_study(case, args.checkpoints, windows[0], jax, jnp, jaxclear, ts, target)
         return
     for case in args.cases.split(","):
-        run_case(case, jax, jnp, jaxclear, windows, steps, ts, weights, target, args.no_default)
+        run_case(
+            case,
+            jax,
+            jnp,
+            jaxclear,
+            windows,
+            steps,
+            ts,
+            weights,
+            target,
+            args.no_default,
+            args.only_default,
+        )
 
 
 def checkpoint_study(case, counts, window, jax, jnp, jaxclear, ts, target):
@@ -204,7 +222,9 @@ def checkpoint_study(case, counts, window, jax, jnp, jaxclear, ts, target):
         )
 
 
-def run_case(case, jax, jnp, jaxclear, windows, steps, ts, weights, target, no_default):
+def run_case(
+    case, jax, jnp, jaxclear, windows, steps, ts, weights, target, no_default, only_default=False
+):
     joints, friction = CASES[case]
     p0 = {k: jnp.asarray(v) for k, v in NOMINAL[friction].items()}
     names = list(p0)
@@ -244,7 +264,7 @@ def run_case(case, jax, jnp, jaxclear, windows, steps, ts, weights, target, no_d
             )
         fd[name] = np.array(rows)
 
-    variants = [("gradient_solver", config, config.reverse_adjoint())]
+    variants = [] if only_default else [("gradient_solver", config, config.reverse_adjoint())]
     if not no_default:
         variants.append(("default", "auto", "reverse"))
     ad = {}
