@@ -297,34 +297,6 @@ def differentiable_simulate(
         traj, tangent = solve_with_tangents(dynamic, y0, directions, dy0, grid, t0, t1, start)
         return traj, _inexact_leaves(tangent)
 
-    # jax.jacfwd is a vmap of jax.jvp over the tangents: batched over tangents only, the tangent
-    # solve integrates them all at once (one state, p tangents: cost ≈ 1 + c·p solves) and the
-    # trajectory stays unbatched, as jacfwd requires of a primal output
-    batched_solve = jax.custom_batching.custom_vmap(tangent_solve)
-
-    @batched_solve.def_vmap
-    def _(axis_size, in_batched, dynamic, y0, directions, dy0, *times):
-        flags = (in_batched[0], in_batched[1], in_batched[4:])
-        if not any(jax.tree_util.tree_leaves(flags)):
-
-            def merge(x, batched):
-                if batched:
-                    return jnp.reshape(x, (axis_size * x.shape[1],) + x.shape[2:])
-                return jnp.broadcast_to(x, (axis_size,) + x.shape[1:])
-
-            directions = jax.tree_util.tree_map(merge, directions, in_batched[2])
-            dy0 = None if dy0 is None else merge(dy0, in_batched[3])
-            traj, tangents = tangent_solve(dynamic, y0, directions, dy0, *times)
-            tangents = [None if t is None else t[:, None] for t in tangents]
-            out_batched = (
-                jax.tree_util.tree_map(lambda _: False, traj),
-                [None if t is None else True for t in tangents],
-            )
-            return (traj, tangents), out_batched
-        axes = jax.tree_util.tree_map(lambda b: 0 if b else None, in_batched)
-        out = jax.vmap(tangent_solve, in_axes=tuple(axes))(dynamic, y0, directions, dy0, *times)
-        return out, jax.tree_util.tree_map(lambda _: True, out)
-
     args = (dynamic, y0, grid, t0, t1, start)
     if mode == "forward":
         fn = jax.custom_jvp(primal)
@@ -340,7 +312,12 @@ def differentiable_simulate(
                 is_leaf=lambda x: isinstance(x, SymbolicZero),
             )
             dy0 = None if y0 is None or _is_zero(d_y0) else d_y0[None]
-            traj, tangents = batched_solve(dynamic, y0, directions, dy0, *primals[2:])
+            # the trajectory from the plain solve: it does not depend on the tangents, so under
+            # jax.jacfwd (a vmap of jax.jvp over them) it stays unbatched, as jacfwd requires, and
+            # equals an undifferentiated call; the tangents from the augmented solve (one per
+            # direction: jacfwd batches them, each with its own steps)
+            traj = primal(*primals)
+            _, tangents = tangent_solve(dynamic, y0, directions, dy0, *primals[2:])
             return traj, _with_integer_zeros(traj, [None if t is None else t[0] for t in tangents])
 
         fn.defjvp(jvp, symbolic_zeros=True)
