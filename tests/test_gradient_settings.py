@@ -95,7 +95,7 @@ def _derivatives(friction, window, modes=("reverse", "forward")):
         return value, (value, out, traj.succeeded)
 
     compiled = {
-        "forward": jax.jit(jax.jacfwd(lambda p, t: loss(p, t, "forward"), has_aux=True)),
+        "forward": jax.jit(jax.jacfwd(lambda p, t: loss(p, t, "discrete-forward"), has_aux=True)),
         "reverse": jax.jit(
             jax.grad(lambda p, t: loss(p, t, config.reverse_adjoint()), has_aux=True)
         ),
@@ -163,12 +163,14 @@ def test_settings_follow_the_friction_law():
         assert config.reverse_adjoint().checkpoints == config.checkpoints
 
 
+@pytest.mark.slow  # gradient_solver is for checks now: the default settings are tested by test_sensitivity.py
 def test_coulomb_reverse_short_window():
     """One joint (B), modified Coulomb μ = 0.01, 1 ms, reverse mode: Lawson–Tsit5 at rtol 1e-12,
     every step stored."""
     _check(_derivatives("coulomb", SHORT_WINDOW, ("reverse",)), "B, Coulomb, 1 ms:")
 
 
+@pytest.mark.slow  # as above
 def test_lugre_forward_short_window():
     """One joint (B), LuGre, 1 ms, forward mode: Tsit5 at rtol 1e-12 with steps of at most 1 µs."""
     _check(_derivatives("lugre", SHORT_WINDOW, ("forward",)), "B, LuGre, 1 ms:")

@@ -29,8 +29,9 @@ STATE_RTOL = 1e-2
 """Slider x: the issue's target, 1 % of the converged central difference (measured 0.002 % at
 0.3 ms, 0.008 % at 1 ms)."""
 STATISTIC_RTOL = 5e-2
-"""Peak force and torque RMS, 5 %: measured 0.2–0.4 % for the peak and 0.2 % (0.3 ms) and
-1.6–2.6 % (1 ms) for the RMS, which is the trapezoidal rule over the solver's steps, so at the
+"""Peak force and torque RMS, 5 %: measured 0.2–2.5 % for the peak (the sample that holds it, and
+the parabola through three, move with the step sequence) and 0.2 % (0.3 ms) and 1.6–2.6 % (1 ms)
+for the RMS, which is the trapezoidal rule over the solver's steps, so at the
 default settings its value and derivative carry that rule's error. The statistics' central
 differences at the tight settings agree to about 1 % only at relative steps 1e-4 and 1e-5 (at
 1e-6 the peak estimate's and the rule's own noise shows), hence the coarser steps."""
@@ -76,13 +77,17 @@ def test_default_settings_give_the_solution_derivative(derivatives, window):
     fine = _central(d["reference"], t1, 1e-6)
     coarse = [_central(d["reference"], t1, r) for r in (1e-4, 1e-5)]
     print(f"{window} s: forward {forward}, reverse {reverse}, FD 1e-4/1e-5/1e-6 {coarse} {fine}")
-    np.testing.assert_allclose(forward, reverse, rtol=1e-6)  # one method, two ways out
+    # the two modes run the same augmented solve, compiled apart (forward mode vmaps it over the
+    # directions): other rounding, so another step sequence
+    np.testing.assert_allclose(forward[0], reverse[0], rtol=STATE_RTOL)
     # slider x: the central differences converge down to 1e-6
     assert abs(coarse[1][0] - fine[0]) <= 1e-3 * abs(fine[0])
     assert abs(forward[0] - fine[0]) <= STATE_RTOL * abs(fine[0])
     # statistics: converged at 1e-4/1e-5
     np.testing.assert_allclose(coarse[0][1:], coarse[1][1:], rtol=2e-2)
     np.testing.assert_allclose(forward[1:], coarse[0][1:], rtol=STATISTIC_RTOL)
+    np.testing.assert_allclose(reverse[1:], coarse[0][1:], rtol=STATISTIC_RTOL)
+    assert abs(reverse[0] - fine[0]) <= STATE_RTOL * abs(fine[0])
 
 
 def test_no_recompile_for_new_values(derivatives):

@@ -354,14 +354,16 @@ def one_joint_y0():
     return jaxclear.assemble(_one_joint(ONE_JOINT))
 
 
-def _response(p, y0):
+def _response(p, y0, adjoint="auto"):
     """Slider x and journal eccentricity x at the end of the window, m. ``journal_speed`` (m/s)
     is added to the slider's initial x velocity in y0, so the same function differentiates with
     respect to y0."""
     mechanism = _one_joint(p)
     n = mechanism.num_coordinates
     start = y0.at[n + 3 * mechanism.index("slider")].add(p["journal_speed"])
-    traj = jaxclear.simulate(mechanism, WINDOW, num_points=3, solver=TIGHT, y0=start)
+    traj = jaxclear.simulate(
+        mechanism, WINDOW, num_points=3, solver=TIGHT, y0=start, adjoint=adjoint
+    )
     return jnp.stack([traj.q[-1, 3 * mechanism.index("slider")], traj.clearance["B"]["ecc_x"][-1]])
 
 
@@ -393,7 +395,9 @@ def one_joint_derivatives(one_joint_y0):
         reverse=jax.tree_util.tree_map(lambda x: x[0], mapped),
         mapped=mapped,
         mapped_values=values,
-        forward=jax.jit(jax.jacfwd(f))(p),
+        # diffrax's forward mode at TIGHT (the error-controlled sensitivities, the default, are
+        # checked at the default settings by tests/test_sensitivity.py and by the eager jvp below)
+        forward=jax.jit(jax.jacfwd(lambda q: _response(q, one_joint_y0, "discrete-forward")))(p),
         f=jitted,
         response=f,
         p=p,
@@ -423,16 +427,19 @@ def test_one_joint_reverse_forward_and_central_differences_agree(one_joint_deriv
     assert np.max(np.abs(reverse - fds[-1])) <= MODES_RTOL * size
 
 
+@pytest.mark.slow  # one more compilation (~35 s); jvp at the defaults: tests/test_sensitivity.py
 def test_one_joint_jvp_unchanged(one_joint_derivatives, one_joint_y0):
-    """An eager ``jax.jvp`` needs no option: simulate sees the forward-mode tracers and takes
-    diffrax's ForwardMode (default ``adjoint="auto"``)."""
+    """An eager ``jax.jvp`` needs no option: simulate sees the forward-mode tracers and takes the
+    error-controlled forward sensitivities (default ``adjoint="auto"``), which agree with the
+    fixture's forward column (diffrax's forward mode at the same tight settings)."""
     d = one_joint_derivatives
     tangent = {k: jnp.asarray(1.0 if k == "clearance" else 0.0) for k in d["p"]}
     value, jvp = jax.jvp(lambda q: _response(q, one_joint_y0), (d["p"],), (tangent,))
     assert _close(value, d["value"])  # jitted; relative to the largest entry (slider x, ~0.17 m)
-    assert _close(jvp, d["forward"]["clearance"], rtol=JVP_RTOL)
+    assert _close(jvp, d["forward"]["clearance"], rtol=MODES_RTOL)
 
 
+@pytest.mark.slow  # traces a whole solve (~30 s) for a message
 def test_jvp_with_reverse_adjoint_names_the_forward_option(one_joint_y0):
     """jax.jvp through simulate(adjoint="reverse"): the error says what to pass. (A jvp applied
     outside a jax.jit of the caller cannot be seen by simulate at all; JAX then reports "can't
@@ -447,11 +454,6 @@ def test_jvp_with_reverse_adjoint_names_the_forward_option(one_joint_y0):
 
     with pytest.raises(TypeError, match="needs adjoint='forward'"):
         jax.jvp(slider_x, (jnp.asarray(5e-4),), (jnp.asarray(1.0),))
-
-
-JVP_RTOL = 1e-6
-"""Eager jvp vs the jitted jacfwd column: the same forward-mode computation compiled apart, so
-rounding-level differences, amplified by the contact (measured 4e-9 relative)."""
 
 
 def test_one_joint_jit_vmap_jacrev_equals_loop_and_central_differences(one_joint_derivatives):

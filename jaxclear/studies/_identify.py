@@ -95,11 +95,25 @@ def _residuals(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma,
     return jnp.where(traj.succeeded, r, jnp.inf).ravel()
 
 
+# Identification differentiates at ``gradient_solver`` settings (its default), where diffrax's
+# discrete derivatives are right and cheaper than the error-controlled sensitivities
+# (docs/differentiation.md); moving fits to ordinary tolerances with the sensitivities is open.
 @eqx.filter_jit
 def _residuals_and_jacobian(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask):
     def f(u):
         r = _residuals(
-            mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask, "forward"
+            mechanism,
+            params,
+            names,
+            solver,
+            u,
+            t0,
+            t1,
+            ts,
+            data,
+            inv_sigma,
+            mask,
+            "discrete-forward",
         )
         return r, r
 
@@ -110,7 +124,7 @@ def _residuals_and_jacobian(mechanism, params, names, solver, u, t0, t1, ts, dat
 def _scan_member(u, mechanism, params, names, solver, t0, t1, ts, data, inv_sigma, mask):
     """Residuals of one scanned point: a member of the ensemble engine's ``map_members``."""
     return _residuals(
-        mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask, "reverse"
+        mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask, "discrete-reverse"
     )
 
 

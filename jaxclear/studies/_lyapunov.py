@@ -321,7 +321,9 @@ class MechanismFlow(eqx.Module):
             ts=jnp.reshape(t_b, (1,)),  # only the end state is used
             solver=self.config,
             y0=y,
-            adjoint="forward",
+            # diffrax's tangent of the discrete flow (the exponent is defined on it, see
+            # LYAPUNOV_RTOL); the error-controlled sensitivities cost several times more here
+            adjoint="discrete-forward",
             extremes=False,
             throw=False,
         )
@@ -400,7 +402,7 @@ def largest_lyapunov(
 ) -> LyapunovResult:
     """Largest Lyapunov exponent of a mechanism's response, from the tangent linear system.
 
-    ``jax.jvp`` of ``simulate(mechanism, t + Δ, t0=t, y0=y, adjoint="forward")`` carries a
+    ``jax.jvp`` of ``simulate(mechanism, t + Δ, t0=t, y0=y, adjoint="discrete-forward")`` carries a
     perturbation of the state over each interval Δ (``flow_lyapunov``); the perturbation is kept
     on the consistent states (``ConstraintProjection``) and measured in the norm of
     ``mechanism_weights``. A periodic (stable) response gives λ < 0, a chaotic one λ > 0; the

@@ -209,6 +209,8 @@ def _averaged(
     return jnp.mean(jax.vmap(one)(offsets))
 
 
+# At ``gradient_solver`` settings (the default) diffrax's discrete derivatives are right and
+# cheaper than the error-controlled sensitivities (docs/differentiation.md).
 @eqx.filter_jit
 def _averaged_and_gradient(
     mechanism, specs, objective, solver, u, offsets, t1, num_points, start, mode
@@ -219,12 +221,12 @@ def _averaged_and_gradient(
     if mode == "forward":
 
         def f(u):
-            value = _averaged(*args, u, *rest, adjoint="forward")
+            value = _averaged(*args, u, *rest, adjoint="discrete-forward")
             return value, value
 
         grad, value = jax.jacfwd(f, has_aux=True)(u)
         return value, grad
-    return jax.value_and_grad(lambda u: _averaged(*args, u, *rest, adjoint="reverse"))(u)
+    return jax.value_and_grad(lambda u: _averaged(*args, u, *rest, adjoint="discrete-reverse"))(u)
 
 
 def optimize(
