@@ -20,6 +20,7 @@ from ._settings import (
     type_name,
     type_ok,
 )
+from ._tables import lubrication_from_table
 
 DESCRIPTION_TABLES = ("ground", "bodies", "joints", "driver", "springs", "loads")
 """Top-level tables that describe a custom mechanism (schema in ``_mechanism_config.py``)."""
@@ -182,9 +183,7 @@ def _joint_table(path: str, joint: str, table: dict) -> dict:
         check_value(s, value, f"[clearance.{joint}] {key} in {path!r}")
         if key == "lubrication":
             # its own keys and ranges, checked here so that a table of a joint the run leaves
-            # ideal (--clearance-joints) is checked too (imported here: that module reads ours)
-            from ._mechanism_config import lubrication_from_table
-
+            # ideal (--clearance-joints) is checked too
             lubrication_from_table(f"[clearance.{joint}] lubrication", value)
     return dict(table)
 

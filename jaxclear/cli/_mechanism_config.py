@@ -43,9 +43,7 @@ import jaxclear
 
 from ..contact import (
     CONTACT_LAWS,
-    LUBRICATION_THEORIES,
     ContactGeometry,
-    Lubrication,
     Smoothing,
     contact_law_from_name,
 )
@@ -53,25 +51,10 @@ from ..friction import FRICTION_LAWS, friction_law_from_name
 from ._common import UsageError, one_line
 from ._config import Settings
 from ._settings import PER_JOINT
-
-
-@dataclasses.dataclass(frozen=True)
-class Field:
-    """One key of a description table.
-
-    Attributes:
-        key: TOML key. kind: ``"number"``, ``"vector2"``, ``"vector3"``, ``"string"``, ``"points"``
-            (table of name -> 2-vector), ``"pair"`` (two point references).
-        unit: SI unit. help: description. required: must be given. default: shown in the reference.
-    """
-
-    key: str
-    kind: str
-    unit: str
-    help: str
-    required: bool = True
-    default: Any = None
-
+from ._tables import LUBRICATION_KEYS, Field, lubrication_from_table
+from ._tables import check_keys as _check_keys
+from ._tables import fail as _fail
+from ._tables import number as _number
 
 TABLES: dict[str, tuple[Field, ...]] = {
     "ground": (
@@ -151,71 +134,6 @@ TABLES: dict[str, tuple[Field, ...]] = {
 """Schema of the custom-mechanism tables (docs/cli.md lists the same)."""
 
 LOAD_KEYS = {"force": ("type", "at", "force"), "torque": ("type", "body", "torque")}
-
-LUBRICATION_KEYS: tuple[Field, ...] = (
-    Field("viscosity", "number", "Pa s", "dynamic viscosity of the lubricant (> 0)"),
-    Field("length", "number", "m", "bearing length L (> 0)"),
-    Field("theory", "string", "", "short (Ocvirk) or long (Sommerfeld) bearing", False, "short"),
-    Field(
-        "transition_eccentricity",
-        "number",
-        "",
-        "eccentricity ratio ε₀ in (0, 1) where the film starts to hand over to dry contact",
-        False,
-        "0.9",
-    ),
-    Field(
-        "transition_width",
-        "number",
-        "",
-        "width Δ of the film-to-dry blend (ε₀ + Δ <= 1)",
-        False,
-        "0.1",
-    ),
-    Field("petroff", "bool", "", "add the Petroff shear torque", False, "false"),
-)
-"""Keys of a per-joint ``lubrication = {...}`` table (``[clearance.<joint>]``; docs/model.md §3b)."""
-
-
-def lubrication_from_table(where: str, table) -> Lubrication:
-    """The ``Lubrication`` of a ``lubrication = { viscosity = ..., length = ..., ... }`` table.
-
-    Raises:
-        UsageError: not a table, an unknown or missing key, a value of the wrong type or out of
-            range (one line, naming ``where`` and the key).
-    """
-    allowed = tuple(f.key for f in LUBRICATION_KEYS)
-    required = tuple(f.key for f in LUBRICATION_KEYS if f.required)
-    _check_keys(where, table, allowed, required)
-    values: dict[str, Any] = {}
-    for key, value in table.items():
-        if key == "theory":
-            if value not in LUBRICATION_THEORIES:
-                _fail(
-                    f"{where} theory",
-                    f"must be one of {', '.join(map(repr, LUBRICATION_THEORIES))}, got {value!r}",
-                )
-            values[key] = value
-        elif key == "petroff":
-            if not isinstance(value, bool):
-                _fail(f"{where} petroff", f"must be true or false, got {value!r}")
-            values[key] = value
-        else:
-            values[key] = _number(f"{where} {key}", value)
-    for key in ("viscosity", "length", "transition_width"):
-        if key in values and not values[key] > 0:
-            _fail(f"{where} {key}", f"must be positive, got {values[key]}")
-    e0 = values.get("transition_eccentricity")
-    if e0 is not None and not 0 < e0 < 1:
-        _fail(
-            f"{where} transition_eccentricity",
-            f"must be in (0, 1), got {e0}; the film acts below it and the wall is at 1",
-        )
-    try:
-        return Lubrication(**values)
-    except (jaxclear.ModelError, ValueError, TypeError) as e:
-        raise UsageError(f"{where}: {one_line(e)}") from None
-
 
 # --- benchmark mechanisms -----------------------------------------------------------------------
 
@@ -400,31 +318,10 @@ def joint_options(settings: Settings, joint: str) -> dict:
 # --- custom mechanisms ----------------------------------------------------------------------------
 
 
-def _fail(where: str, message: str):
-    raise UsageError(f"{where}: {message}")
-
-
-def _number(where: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        _fail(where, f"must be a finite number, got {value!r}")
-    return float(value)
-
-
 def _vector(where: str, value, size: int) -> tuple[float, ...]:
     if not isinstance(value, list) or len(value) != size:
         _fail(where, f"must be a list of {size} numbers, got {value!r}")
     return tuple(_number(where, v) for v in value)
-
-
-def _check_keys(where: str, table, allowed, required) -> None:
-    if not isinstance(table, dict):
-        _fail(where, f"must be a table, got {table!r}")
-    for key in table:
-        if key not in allowed:
-            _fail(where, f"unknown key {key!r}; known keys: {', '.join(allowed)}")
-    for key in required:
-        if key not in table:
-            _fail(where, f"missing key {key!r}")
 
 
 def _fields(table_name: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
