@@ -12,7 +12,7 @@ Printed per window:
 - the reference: central differences of the solution at ``jaxclear.gradient_solver`` settings
   (Lawson–Tsit5, rtol 1e-12) at relative steps 1e-5 and 1e-6 (their spread shows convergence);
 - ``jax.jacfwd`` and ``jax.grad`` of ``simulate`` with no solver or adjoint argument (the
-  error-controlled sensitivities, ``jaxclear.solve._sensitivity``), and, unless ``--no-discrete``,
+  error-controlled sensitivities, docs/differentiation.md), and, unless ``--no-discrete``,
   ``adjoint="discrete-forward"`` (diffrax's ForwardMode through the steps, the old default), each
   with its error against the reference.
 
