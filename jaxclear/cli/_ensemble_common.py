@@ -46,6 +46,24 @@ ENSEMBLE_FLAGS = ("--chunk-size", "--devices", "--member", "--no-progress", "--q
 """Options every ensemble command adds (for 'did you mean' hints)."""
 
 
+def _chunk_size(requested: int, members: int, devices: int) -> int:
+    """Members per chunk: at most ``requested`` and the members there are, a multiple of the
+    number of devices (each takes an equal share)."""
+    return -(-min(requested, members) // devices) * devices
+
+
+def _engine_options(prepared) -> dict:
+    """What an ensemble and the replay of one of its members share besides the members: the time
+    window, output grid, solver and contact-mode threshold (the same compiled program)."""
+    return dict(
+        t0=0.0,
+        statistics_start=prepared.statistics_start,
+        num_points=prepared.num_points,
+        solver=prepared.solver,
+        continuous_fraction=prepared.continuous_fraction,
+    )
+
+
 def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
     """Add ``--chunk-size``, ``--devices``, ``--member``, ``--no-progress`` and ``--quiet``."""
     parser.add_argument(
@@ -277,7 +295,7 @@ def run_engine(
     out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
     devices = local_devices(args.devices)
     per = len(devices)
-    chunk = -(-min(args.chunk_size, members) // per) * per
+    chunk = _chunk_size(args.chunk_size, members, per)
     previous = _previous(out_dir, table_name)
     if args.devices is not None and per < args.devices:
         say(
@@ -298,14 +316,7 @@ def run_engine(
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ResumeWarning)
-            result = call(
-                t0=0.0,
-                statistics_start=prepared.statistics_start,
-                num_points=prepared.num_points,
-                solver=prepared.solver,
-                continuous_fraction=prepared.continuous_fraction,
-                settings=engine,
-            )
+            result = call(**_engine_options(prepared), settings=engine)
         for w in caught:  # what resuming set right is said; other warnings go on as they came
             if issubclass(w.category, ResumeWarning):
                 say(f"note: {w.message}")
@@ -509,7 +520,7 @@ def replay(
         steps = [int(by_index[i].get("num_steps") or 0) for i in range(n)]
     devices = local_devices(args.devices)
     per = len(devices)
-    chunk = -(-min(args.chunk_size, n) // per) * per
+    chunk = _chunk_size(args.chunk_size, n, per)
     engine = EnsembleSettings(chunk_size=chunk, devices=devices, progress=False)
     target = member_folder(out_dir, member)
     staged = StagedOutput(target, f"--out {str(out_dir)!r}: member folder")
@@ -528,11 +539,7 @@ def replay(
                 prepared.t1,
                 member,
                 num_steps=steps,
-                t0=0.0,
-                statistics_start=prepared.statistics_start,
-                num_points=prepared.num_points,
-                solver=prepared.solver,
-                continuous_fraction=prepared.continuous_fraction,
+                **_engine_options(prepared),
                 settings=engine,
             )
         except EnsembleError as e:

@@ -306,25 +306,12 @@ class Tracker(eqx.Module):
         )
 
 
-class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
-    """A diffrax solver that runs ``solver`` and carries a ``Tracker`` in its solver state.
+class AbstractWrappingSolver(diffrax.AbstractAdaptiveSolver):
+    """A diffrax solver that runs ``solver`` and carries something of its own in the solver state
+    (``ExtremesTracking``; ``jaxclear.solve._sensitivity.TangentTracking``): everything but
+    ``init`` and ``step`` is the wrapped solver's."""
 
-    After each step it evaluates ``observe`` at the step's midpoint (from the step's dense output)
-    and at its end; diffrax keeps the new solver state only if the step is accepted, so rejected
-    steps leave the extremes alone.
-    Read the result with ``SaveAt(solver_state=True)``: ``sol.solver_state[1].extremes()``.
-
-    Attributes:
-        solver: the wrapped solver (any adaptive diffrax solver).
-        observe: ``observe(t, y, args) -> Observation``.
-        start: start time of the statistics window, s.
-        max_events: room for this many contact events per clearance joint (0: none recorded).
-    """
-
-    solver: diffrax.AbstractSolver
-    observe: Callable = eqx.field(static=True)
-    start: Float[Array, ""]
-    max_events: int = eqx.field(static=True, default=0)
+    solver: eqx.AbstractVar[diffrax.AbstractSolver]
 
     # pyright reads diffrax's AbstractVar/AbstractClassVar attributes of AbstractSolver as class
     # variables; diffrax's own wrapping solvers (HalfSolver) override them with properties too.
@@ -345,6 +332,30 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
     def strong_order(self, terms):
         return self.solver.strong_order(terms)
 
+    def func(self, terms, t0, y0, args):
+        return self.solver.func(terms, t0, y0, args)
+
+
+class ExtremesTracking(AbstractWrappingSolver):
+    """A diffrax solver that runs ``solver`` and carries a ``Tracker`` in its solver state.
+
+    After each step it evaluates ``observe`` at the step's midpoint (from the step's dense output)
+    and at its end; diffrax keeps the new solver state only if the step is accepted, so rejected
+    steps leave the extremes alone.
+    Read the result with ``SaveAt(solver_state=True)``: ``sol.solver_state[1].extremes()``.
+
+    Attributes:
+        solver: the wrapped solver (any adaptive diffrax solver).
+        observe: ``observe(t, y, args) -> Observation``.
+        start: start time of the statistics window, s.
+        max_events: room for this many contact events per clearance joint (0: none recorded).
+    """
+
+    solver: diffrax.AbstractSolver
+    observe: Callable = eqx.field(static=True)
+    start: Float[Array, ""]
+    max_events: int = eqx.field(static=True, default=0)
+
     def init(self, terms, t0, t1, y0, args):
         return self.solver.init(terms, t0, t1, y0, args), Tracker.first(
             self.start, t0, self.observe(t0, y0, args), self.max_events
@@ -364,6 +375,3 @@ class ExtremesTracking(diffrax.AbstractAdaptiveSolver):
         first, second = (jax.tree_util.tree_map(lambda x, i=i: x[i], both) for i in (0, 1))
         tracker = tracker.update(t_mid, first).update(t1, second)
         return y1, y_error, dense_info, (inner, tracker), result
-
-    def func(self, terms, t0, y0, args):
-        return self.solver.func(terms, t0, y0, args)

@@ -20,6 +20,8 @@ from ..dynamics._groups import evaluation_groups
 from ._extremes import Observation
 from ._trajectory import Trajectory
 
+ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
+
 
 def outputs(mechanism, t, y) -> dict[str, Any]:
     ev = evaluate(mechanism, t, y)

@@ -56,11 +56,9 @@ from ..dynamics._equations import (
     vector_field,
 )
 from ..dynamics._equations import initial_state as dynamics_initial_state
-from ._extremes import Tracker
-from ._observables import input_error, make_trajectory, observe
+from ._extremes import AbstractWrappingSolver, Tracker
+from ._observables import ASSEMBLY_TOLERANCE, input_error, make_trajectory, observe
 from ._solver import SolverConfig
-
-ASSEMBLY_TOLERANCE = 1e-7  # m: as in _simulate (a jitted assembly above it is an input error)
 
 
 def _partition(tree):
@@ -136,7 +134,7 @@ def tangent_norm(size: int, p: int, with_tangents: bool = True):
     return norm
 
 
-class TangentTracking(diffrax.AbstractAdaptiveSolver):
+class TangentTracking(AbstractWrappingSolver):
     """``ExtremesTracking`` for the augmented solve: the tracker of the state and its tangents
     (the linearised update of each step, per direction)."""
 
@@ -144,26 +142,6 @@ class TangentTracking(diffrax.AbstractAdaptiveSolver):
     start: jax.Array
     size: int = eqx.field(static=True)
     max_events: int = eqx.field(static=True, default=0)
-
-    @property
-    def term_structure(self):  # pyright: ignore[reportIncompatibleVariableOverride]
-        return self.solver.term_structure
-
-    @property
-    def interpolation_cls(self):  # pyright: ignore[reportIncompatibleMethodOverride]
-        return self.solver.interpolation_cls
-
-    def order(self, terms):
-        return self.solver.order(terms)
-
-    def error_order(self, terms):
-        return self.solver.error_order(terms)
-
-    def strong_order(self, terms):
-        return self.solver.strong_order(terms)
-
-    def func(self, terms, t0, y0, args):
-        return self.solver.func(terms, t0, y0, args)
 
     def _observe(self, t, Y, args):
         y, S = _split(Y, self.size)

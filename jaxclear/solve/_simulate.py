@@ -25,12 +25,10 @@ from ..dynamics._equations import (
 )
 from ..dynamics._equations import initial_state as dynamics_initial_state
 from ._extremes import ExtremesTracking
-from ._observables import input_error, make_trajectory, observe
+from ._observables import ASSEMBLY_TOLERANCE, input_error, make_trajectory, observe
 from ._sensitivity import SENSITIVITY_CORE
 from ._solver import SolverConfig, solver_config
 from ._trajectory import Trajectory
-
-ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
 
 # diffrax traces the vector field once per Runge–Kutta stage (and per Jacobian); wrapped in a jit,
 # the stages share one traced function, which XLA then inlines (same compiled code, less tracing).
@@ -540,45 +538,27 @@ def simulate(
             f"adjoint {adjoint!r} is unknown; use one of {', '.join(map(repr, ADJOINTS))} or a diffrax.AbstractAdjoint."
         )
     events = int(contact_events) if extremes else 0
-    if traced and isinstance(adjoint, str) and adjoint in SENSITIVITY_ADJOINTS:
-        if adjoint == "auto":
-            adjoint = "forward" if _has_forward_mode_tracer((mechanism, y0)) else "reverse"
-        try:
-            return differentiable_simulate(
-                adjoint,
-                mechanism,
-                grid,
-                jnp.asarray(t0, dtype=float),
-                jnp.asarray(t1, dtype=float),
-                y0,
-                jnp.asarray(start, dtype=float),
-                config,
-                progress,
-                extremes,
-                events,
-            )
-        except TypeError as e:  # jax.jvp/jacfwd through the reverse-mode rule (a custom_vjp)
-            if "custom_vjp" in str(e):
-                raise TypeError(
-                    "forward-mode differentiation (jax.jvp, jax.jacfwd) of simulate needs adjoint='forward' "
-                    "(or the default 'auto' when the jvp is not outside a jax.jit of your function)."
-                ) from e
-            raise
+    times = (grid, jnp.asarray(t0, dtype=float), jnp.asarray(t1, dtype=float))
+    start = jnp.asarray(start, dtype=float)
     try:
+        if traced and isinstance(adjoint, str) and adjoint in SENSITIVITY_ADJOINTS:
+            if adjoint == "auto":
+                adjoint = "forward" if _has_forward_mode_tracer((mechanism, y0)) else "reverse"
+            return differentiable_simulate(
+                adjoint, mechanism, *times, y0, start, config, progress, extremes, events
+            )
         traj = _simulate_core(
             mechanism,
-            grid,
-            jnp.asarray(t0, dtype=float),
-            jnp.asarray(t1, dtype=float),
+            *times,
             y0,
-            jnp.asarray(start, dtype=float),
+            start,
             config,
             make_adjoint(adjoint, (mechanism, y0), config),
             progress,
             extremes,
-            int(contact_events) if extremes else 0,
+            events,
         )
-    except TypeError as e:  # jax.jvp/jacfwd through the reverse-mode adjoint (a custom_vjp)
+    except TypeError as e:  # jax.jvp/jacfwd through a reverse-mode rule (a custom_vjp)
         if "custom_vjp" in str(e):
             raise TypeError(
                 "forward-mode differentiation (jax.jvp, jax.jacfwd) of simulate needs adjoint='forward' "
