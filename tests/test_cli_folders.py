@@ -125,3 +125,27 @@ def test_an_unwritable_file_in_the_earlier_run_does_not_mix_runs(tmp_path):
     assert run(out, "--no-plots") == 0
     assert (out / "results.csv").is_file()
     assert leftovers(tmp_path) == []
+
+
+def test_a_changed_per_joint_table_is_another_configuration(tmp_path, capsys):
+    """The check compared the settings only, so a changed [clearance.<joint>] table (its film, or
+    any per-joint key) replaced a folder of another mechanism without a word. The file's tables
+    count now. (--clearance-joints none keeps the one shared ideal solve; the per-joint tables are
+    still read and checked, and compared as the file gives them.)"""
+    out = tmp_path / "o"
+    config = tmp_path / "lubricated.toml"
+    table = "[clearance.B]\nclearance = 2e-4\nlubrication = {{ viscosity = 0.4, length = {} }}\n"
+    config.write_text(table.format(0.01))
+    argv = [*RUN, "--no-plots", str(config), "--out", str(out)]
+    assert cli.main(argv) == 0
+    assert cli.main(argv) == 0, "the same file is the same configuration"
+    before = snapshot(out)
+    recorded = json.loads(before["run.json"])["clearance_per_joint"]["B"]
+    assert recorded == {"clearance": 2e-4, "lubrication": {"viscosity": 0.4, "length": 0.01}}
+    config.write_text(table.format(0.04))
+    refused(capsys, argv, "(changed: clearance.B.lubrication.length)")
+    config.write_text(table.format(0.01).replace("2e-4", "3e-4"))
+    refused(capsys, argv, "(changed: clearance.B.clearance)")
+    config.write_text(table.format(0.01) + "[clearance.A]\nclearance = 1e-4\n")
+    refused(capsys, argv, "(changed: clearance.A)")
+    assert snapshot(out) == before

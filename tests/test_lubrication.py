@@ -1,6 +1,7 @@
 """Lubricated revolute clearance joint (docs/model.md §3b): the film's closed forms against an
-independent quadrature of Reynolds' equation, Ocvirk's steady-load relation, a pure squeeze drop
-against SciPy, the blend to dry contact, gradients, and the benchmark slider–crank."""
+independent quadrature of Reynolds' equation, Ocvirk's steady-load relation, the Petroff torque
+against Petroff's law, a pure squeeze drop against SciPy, the blend to dry contact, gradients,
+and the benchmark slider–crank."""
 
 import math
 
@@ -14,6 +15,7 @@ from scipy.optimize import root
 
 import jaxclear
 from jaxclear.contact import ContactGeometry, ContactKinematics, Hertz, Smoothing, film_force
+from jaxclear.dynamics import evaluate, initial_state
 from jaxclear.friction import friction_law_from_name
 
 MU, LENGTH, RADIUS, CLEARANCE = 0.4, 0.01, 0.0095, 5e-4
@@ -154,6 +156,80 @@ def test_steady_load_satisfies_ocvirk_attitude(load):
     # the line of centres lies at φ from the load line in the direction of rotation (counter-
     # clockwise here: from −y towards +x), as in Pinkus & Sternlicht
     assert ecc[0] > 0
+
+
+# --- Petroff's law: the viscous torque of a centred journal -------------------------------------------
+def _petroff_torque(omega_rel, load=100.0):
+    """Petroff's law in Shigley's form (Shigley & Mischke, *Mechanical Engineering Design*, the
+    Petroff equation): f R/c = 2π² S with the Sommerfeld number S = (R/c)² μN/P, N in rev/s and
+    P = W/(2RL); the torque is T = fWR (W cancels). In SI: T = 2πμR³Lω/c."""
+    n = abs(omega_rel) / (2.0 * math.pi)
+    sommerfeld = (RADIUS / CLEARANCE) ** 2 * MU * n / (load / (2.0 * RADIUS * LENGTH))
+    friction = 2.0 * math.pi**2 * sommerfeld * CLEARANCE / RADIUS
+    return friction * load * RADIUS
+
+
+def _couette_torque_quadrature(eps, omega_rel, n=4096):
+    """Shear of the Couette flow over the full film on the journal, by quadrature: τ = μRω/h with
+    h = c(1 + ε cos θ), torque ∫ τ R · L R dθ (the periodic trapezoidal rule is spectrally accurate)."""
+    theta = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
+    h = CLEARANCE * (1.0 + eps * np.cos(theta))
+    return np.sum(MU * RADIUS * omega_rel / h * RADIUS * LENGTH * RADIUS) * (2.0 * np.pi / n)
+
+
+def _torque(lubrication, ecc, omega_j, omega_b):
+    f = _film(lubrication, jnp.asarray(ecc, dtype=float), jnp.zeros(2), omega_j, omega_b)
+    return float(f.torque)
+
+
+def test_petroff_torque_of_a_centred_journal():
+    """ε → 0: the `petroff` option's torque is Petroff's law, opposing the journal's rotation
+    relative to the bearing; off the centre it is the Couette shear over the full film
+    (∝ 1/√(1 − ε²)); without the option, and at the wall (film blended out), there is none."""
+    lub = _lubrication(petroff=True)
+    for omega_j, omega_b in ((300.0, -50.0), (-120.0, 80.0)):
+        rel = omega_j - omega_b
+        want = -math.copysign(_petroff_torque(rel), rel)
+        np.testing.assert_allclose(_torque(lub, [0.0, 0.0], omega_j, omega_b), want, rtol=1e-12)
+        np.testing.assert_allclose(
+            _torque(lub, [1e-6 * CLEARANCE, 0.0], omega_j, omega_b), want, rtol=1e-11
+        )
+        assert _torque(_lubrication(), [0.0, 0.0], omega_j, omega_b) == 0.0
+        for eps in (0.3, 0.6, 0.85):  # inside ε₀ = 0.9: the film alone
+            ecc = eps * CLEARANCE * np.array([0.6, -0.8])
+            np.testing.assert_allclose(
+                _torque(lub, ecc, omega_j, omega_b),
+                -_couette_torque_quadrature(eps, rel),
+                rtol=1e-10,
+            )
+        assert _torque(lub, [1.0001 * CLEARANCE, 0.0], omega_j, omega_b) == 0.0  # in the wall
+
+
+def test_petroff_torque_reaches_journal_and_bearing():
+    """Through the equations of motion (no solve): a centred journal spinning in a free housing,
+    no load and no squeeze: the journal is braked and the housing driven by Petroff's torque
+    (I α = ∓T), and nothing moves the centres."""
+    inertia_h, inertia_j = 3e-3, 1e-3
+    housing = jaxclear.Body("housing", 2.0, inertia_h, position=(0.0, 0.0, 0.0))
+    journal = jaxclear.Body("journal", JOURNAL_MASS, inertia_j, position=(0.0, 0.0, 0.0))
+    joint = jaxclear.ClearanceJoint(
+        "J",
+        "housing",
+        (0.0, 0.0),
+        "journal",
+        (0.0, 0.0),
+        geometry=ContactGeometry(RADIUS + CLEARANCE, RADIUS, length=LENGTH),
+        contact_law=Hertz(),
+        friction_law=friction_law_from_name("none"),
+        lubrication=_lubrication(petroff=True),
+    )
+    m = jaxclear.Mechanism(bodies=(housing, journal), clearance_joints=(joint,), gravity=(0, 0))
+    omega_h, omega_j = -50.0, 300.0
+    y = initial_state(m, jnp.zeros(6), jnp.array([0, 0, omega_h, 0, 0, omega_j]))
+    qdd = np.asarray(evaluate(m, 0.0, y).qdd)
+    torque = _petroff_torque(omega_j - omega_h)
+    np.testing.assert_allclose(qdd[[2, 5]], [torque / inertia_h, -torque / inertia_j], rtol=1e-12)
+    np.testing.assert_allclose(qdd[[0, 1, 3, 4]], 0.0, atol=1e-12)
 
 
 # --- one journal in a ground bearing: squeeze drop and dynamic settling --------------------------

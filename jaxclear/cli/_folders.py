@@ -5,9 +5,10 @@
   leaves the earlier folder as it was, never a mix of two runs.
 - ``montecarlo`` and ``sweep`` write in place, each file replaced atomically after every chunk,
   so that a killed run resumes from what it finished (the engine's manifest ``ensemble.json``).
-- A folder that holds another command's results, another configuration's, or result files whose
-  manifest is gone, is refused before anything is solved; ``--force`` moves it aside first
-  (``NAME.replaced-<UTC time>``, nothing is deleted).
+- A folder that holds another command's results, another configuration's (the settings, or the
+  config file's per-joint or custom-mechanism tables), or result files whose manifest is gone, is
+  refused before anything is solved; ``--force`` moves it aside first (``NAME.replaced-<UTC
+  time>``, nothing is deleted).
 """
 
 import json
@@ -49,13 +50,33 @@ UNRELATED = (("solver", "compilation_cache"),)
 """Settings that do not change the results, so a folder may be run again with another value."""
 
 
-def _configuration(config: dict) -> dict:
-    """What must match for a folder to be run again: every section but [output] and
-    ``UNRELATED``."""
-    plain = json.loads(json.dumps(config, default=str))
+MECHANISM_ENTRIES = {"clearance_per_joint": "clearance", "description": None}
+"""The manifest entries besides ``config`` that hold the config file's other mechanism tables
+(run.json has both, fit.json ``clearance_per_joint`` only), and where each goes in the compared
+configuration: the per-joint tables ``[clearance.<joint>]`` inside ``clearance`` (so a change
+reads ``clearance.B.lubrication.length``, its path in the file; a joint's name is never a shared
+key of [clearance]), the custom mechanism's tables (``bodies``, ``joints``, ...) at the top."""
+
+
+def _configuration(manifest: dict, recorded: set[str]) -> dict:
+    """What must match for a folder to be run again: the configuration (every section but [output]
+    and ``UNRELATED``), with the ``MECHANISM_ENTRIES`` of ``recorded`` merged in.
+
+    Args:
+        manifest: ``{"config": ..., "clearance_per_joint": ..., "description": ...}`` (a missing
+            entry counts as empty).
+        recorded: the ``MECHANISM_ENTRIES`` the earlier manifest holds; an entry it lacks is left
+            out of both sides (what it held is not known).
+    """
+    plain = json.loads(json.dumps(manifest.get("config") or {}, default=str))
     plain.pop("output", None)
     for section, key in UNRELATED:
         plain.get(section, {}).pop(key, None)
+    for entry, section in MECHANISM_ENTRIES.items():
+        if entry not in recorded:
+            continue
+        tables = json.loads(json.dumps(manifest.get(entry) or {}, default=str))
+        (plain if section is None else plain.setdefault(section, {})).update(tables)
     return plain
 
 
@@ -82,7 +103,12 @@ def claim_output(settings, command: str, say=print) -> Path:
     owner = folder_owner(out)
     if owner is None:
         return out
-    why = _conflict(out, owner, command, settings.config)
+    current = {
+        "config": settings.config,
+        "clearance_per_joint": settings.joint_tables,
+        "description": settings.description,
+    }
+    why = _conflict(out, owner, command, current)
     if why is None:
         return out
     if not settings.config["output"]["force"]:
@@ -101,8 +127,11 @@ def claim_output(settings, command: str, say=print) -> Path:
     return out
 
 
-def _conflict(out: Path, owner: str, command: str, config: dict) -> str | None:
-    """Why ``out`` (holding ``owner``'s results) cannot take ``command``'s, or ``None``."""
+def _conflict(out: Path, owner: str, command: str, current: dict) -> str | None:
+    """Why ``out`` (holding ``owner``'s results) cannot take ``command``'s, or ``None``.
+
+    ``current``: this command's ``config``, ``clearance_per_joint`` and ``description``, compared
+    with the same entries of the folder's manifest (``_configuration``)."""
     if owner == "unknown":
         return "files that no jaxclear manifest accounts for (results whose manifest is missing?)"
     if owner != command:
@@ -110,12 +139,15 @@ def _conflict(out: Path, owner: str, command: str, config: dict) -> str | None:
     if command in ("montecarlo", "sweep"):
         return None  # the engine resumes it, or refuses another configuration
     try:
-        old = json.loads((out / f"{command}.json").read_text(encoding="utf-8")).get("config")
-    except (OSError, ValueError, AttributeError):
+        old = json.loads((out / f"{command}.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
         return f"a {command}.json that cannot be read"
-    if not isinstance(old, dict):
+    if not isinstance(old, dict) or not isinstance(old.get("config"), dict):
         return f"a {command}.json without its configuration"
-    changed = configuration_differences(_configuration(old), _configuration(config))
+    recorded = {entry for entry in MECHANISM_ENTRIES if isinstance(old.get(entry), dict)}
+    changed = configuration_differences(
+        _configuration(old, recorded), _configuration(current, recorded)
+    )
     if changed:
         return f"a {command} of another configuration (changed: {', '.join(changed[:6])})"
     return None
