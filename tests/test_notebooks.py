@@ -21,7 +21,7 @@ TIMEOUT = 600  # s per cell: compiles dominate
 
 def _kernel_environment(quick):
     """Environment the kernel inherits: quick mode, and in quick mode XLA's faster CPU compilation
-    (the ``jaxclear`` command's default, ``[solver] fast_compile``): the quick runs are dominated by
+    (the ``jaxclear`` command's ``--fast-compile``, ``[solver] fast_compile``): the quick runs are dominated by
     compilation, and they check that the notebooks run, not their figures."""
     env = {"JAXCLEAR_QUICK": "1" if quick else "0"}
     flags = os.environ.get("XLA_FLAGS", "")

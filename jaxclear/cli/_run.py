@@ -1,9 +1,7 @@
 """``jaxclear run [CONFIG.toml]``: simulate one mechanism and write results and plots."""
 
 import argparse
-import contextlib
 import dataclasses
-import io
 import math
 import sys
 import time
@@ -16,6 +14,7 @@ import numpy as np
 
 import jaxclear
 
+from .._core._progress import progress_bar
 from ..internal import EVENTS_PER_REVOLUTION
 from ..io import (
     RUN_FORMAT,
@@ -27,9 +26,12 @@ from ..io import (
     write_json,
     write_modes_csv,
     write_results,
+    write_revolutions_csv,
 )
 from ..mechanisms import is_slider_crank
 from ..solve import finite_rows, ideal_mechanism, wall_start, window
+from ..studies import simulate_revolutions
+from ..studies._revolutions import segment_points
 from ._common import (
     PROG,
     RunError,
@@ -48,6 +50,7 @@ from ._settings import (
 )
 
 MODES_CSV = "modes.csv"
+REVOLUTIONS_CSV = "revolutions.csv"
 
 WARMUP_FRACTION = 1e-3
 """The warm-up (compile) call integrates this fraction of the horizon; see ``timed_simulate``."""
@@ -146,54 +149,50 @@ def event_capacity(settings: Settings) -> int:
     return int(max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions)))
 
 
-def timed_simulate(
+def timed_revolutions(
     mechanism,
-    t1: float,
-    num_points: int,
+    settings: Settings,
     solver,
     progress: bool,
-    statistics_start: float,
     contact_events: int = 0,
 ):
-    """Simulate, timing compilation and the run separately.
+    """Simulate revolution by revolution (``jaxclear.studies.simulate_revolutions``), timing
+    compilation and the run separately.
 
-    A warm-up call over ``WARMUP_FRACTION`` of the horizon, with the same number of output points,
-    solver settings and progress setting, triggers the one compilation (the end time is a traced
-    value, so the full run reuses the compiled code); its wall time is ``compile_time_s`` (tracing,
-    XLA compilation, assembly and a negligible solve). The full call is then timed alone as
-    ``run_time_s``. Statistics are accumulated over the solver's steps from ``statistics_start``.
+    A warm-up call over ``WARMUP_FRACTION`` of a revolution, with a revolution's number of output
+    points and the same solver settings, triggers the one compilation (start and end times are
+    traced values, so every revolution reuses the compiled code); its wall time is
+    ``compile_time_s``. The revolutions are then timed together as ``run_time_s`` (a fractional
+    last revolution compiles a second program, inside that time).
     """
+    simulation = settings.config["simulation"]
+    period = 60.0 / settings.config["mechanism"]["rpm"]
+    per_revolution = int(simulation["points_per_revolution"])
+    revolutions = simulation["revolutions"]
     start = time.perf_counter()
-    with contextlib.redirect_stderr(
-        io.StringIO()
-    ):  # keep the warm-up's progress bar off the terminal
-        _block(
-            jaxclear.simulate(
-                mechanism,
-                t1 * WARMUP_FRACTION,
-                num_points=num_points,
-                solver=solver,
-                progress=progress,
-                throw=False,
-                statistics_start=0.0,
-                contact_events=contact_events,
-            )
-        )
-    compile_time = time.perf_counter() - start
-    start = time.perf_counter()
-    traj = _block(
+    _block(
         jaxclear.simulate(
             mechanism,
-            t1,
-            num_points=num_points,
+            period * WARMUP_FRACTION,
+            num_points=segment_points(min(float(revolutions), 1.0), per_revolution),
             solver=solver,
-            progress=progress,
             throw=False,
-            statistics_start=statistics_start,
             contact_events=contact_events,
         )
     )
-    return traj, compile_time, time.perf_counter() - start
+    compile_time = time.perf_counter() - start
+    start = time.perf_counter()
+    with progress_bar(progress, math.ceil(revolutions), "revolutions") as bar:
+        result = simulate_revolutions(
+            mechanism,
+            revolutions,
+            points_per_revolution=per_revolution,
+            skip=simulation["skip_revolutions"],
+            solver=solver,
+            contact_events=contact_events,
+            on_revolution=lambda k, traj: bar.update(1),
+        )
+    return result, compile_time, time.perf_counter() - start
 
 
 def _joints_text(settings: Settings, names: list[str]) -> str:
@@ -206,6 +205,30 @@ def _joints_text(settings: Settings, names: list[str]) -> str:
         f"clearance joints {','.join(names)} (c = {c['clearance'] * 1e3:g} mm, {c['contact']} contact, "
         f"{'no' if c['friction'] == 'none' else c['friction']} friction{extra})"
     )
+
+
+def _summary_line(run) -> str:
+    """The printed line that leads: the verdict and the median (min .. max) over the kept
+    revolutions of the headline figures; the single largest values follow on their own line."""
+    summary, kept = run.summary(), run.kept
+    parts = []
+    mechanism = run.trajectory.mechanism
+    names = []
+    if is_slider_crank(mechanism):
+        names.append(("peak_slider_acceleration", "peak |slider acceleration|", "m/s^2"))
+    if mechanism.driver is not None:
+        body = mechanism.driver.body
+        names += [(f"{body}_torque_rms", f"{body} torque rms", "N m")]
+    names += [
+        (f"{j.name}_peak_normal_force", f"{j.name} peak normal force", "N")
+        for j in mechanism.clearance_joints
+    ]
+    for key, label, unit in names:
+        if key in summary:
+            v = summary[key]
+            parts.append(f"{label} {v['median']:.4g} {unit} ({v['min']:.4g} .. {v['max']:.4g})")
+    head = f"revolutions {kept[0]}-{kept[-1]} ({len(kept)}): {run.verdict.describe()}"
+    return f"{head}\nmedian (min .. max) per revolution: " + "; ".join(parts)
 
 
 def _figures(traj, statistics: dict) -> str:
@@ -288,15 +311,10 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     )
     say("compiling (one-off) and simulating ...", flush=True)
     try:
-        traj, compile_time, run_time = timed_simulate(
-            mechanism,
-            t1,
-            num_points,
-            solver,
-            progress,
-            t_keep,
-            event_capacity(settings) if names else 0,
+        revolution_run, compile_time, run_time = timed_revolutions(
+            mechanism, settings, solver, progress, event_capacity(settings) if names else 0
         )
+        traj = revolution_run.trajectory
     except jaxclear.AssemblyError as e:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
     except jaxclear.ModelError as e:
@@ -315,10 +333,16 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
 
     kept = window(traj, t_keep)
     statistics = run_statistics(traj)
+    rows = revolution_run.table(fraction if names else None)
+    info.update(
+        steady_state=revolution_run.verdict.as_dict(),
+        summary=revolution_run.summary(),
+        revolutions=rows,
+    )
     try:
         paths, files = write_run_outputs(
             traj, staged[0], info, statistics, ideal, t1, num_points, t_keep, fraction,
-            plots=config["output"]["plots"], period=60.0 / rpm, say=say,
+            plots=config["output"]["plots"], period=60.0 / rpm, say=say, revolution_rows=rows,
         )  # fmt: skip
     except OSError as e:
         raise RunError(
@@ -329,7 +353,10 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     say(
         f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)"
     )
-    say(f"from revolution {skip:g}: {_figures(kept, statistics)}")
+    say(_summary_line(revolution_run))
+    say(
+        f"largest over the kept revolutions (from revolution {skip:g}): {_figures(kept, statistics)}"
+    )
     say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
     return 0
 
@@ -405,6 +432,7 @@ def write_run_outputs(
     plots: bool,
     period: float,
     say,
+    revolution_rows: list[dict] | None = None,
 ) -> tuple[dict, list[str]]:
     """Write a successful run's outputs (what ``jaxclear run`` writes) and publish them.
 
@@ -455,6 +483,8 @@ def write_run_outputs(
 
             files.append(save_mode_timeline(traj, stage, events=events, start=t_keep).name)
     modes.pop("events", None)
+    if revolution_rows:
+        files.append(write_revolutions_csv(stage / REVOLUTIONS_CSV, revolution_rows).name)
     info.update(statistics=statistics, **modes, files=files)
     paths = write_results(stage, traj, info, fraction)
     staged.publish()

@@ -641,10 +641,11 @@ SETTINGS: tuple[Setting, ...] = (
         "solver",
         "fast_compile",
         bool,
-        True,
+        False,
         "",
         "compile with XLA's CPU fusion emitters off (XLA_FLAGS=--xla_cpu_use_fusion_emitters=false): "
-        "measured 5.4 -> 2.2 s XLA time for about a tenth longer runs (Tsit5, three joints)",
+        "measured 5.4 -> 2.2 s XLA time for about a tenth longer runs (Tsit5, three joints), but then "
+        "the solver's steps depend on the number of saved points (docs/outputs.md); off by default",
         "--fast-compile",
     ),
     Setting(

@@ -73,6 +73,26 @@ def write_csv(path: Path, columns: list[Column]) -> Path:
     return atomic_write(path, write)
 
 
+def write_revolutions_csv(path: Path, rows: list[dict]) -> Path:
+    """revolutions.csv: one row per revolution (``revolution_rows``): its index, start and end
+    times, whether the summary keeps it, then its statistics and contact-mode shares; empty
+    cells where a revolution has no value (left out of the statistics window)."""
+    names = list(dict.fromkeys(k for row in rows for k in row))
+
+    def cell(v):
+        if v is None or (isinstance(v, float) and not np.isfinite(v)):
+            return ""
+        return repr(float(v)) if isinstance(v, float) else str(v)
+
+    def write(tmp):
+        with open(tmp, "w", newline="", encoding="utf-8") as f:
+            f.write(",".join(names) + "\n")
+            for row in rows:
+                f.write(",".join(cell(row.get(k)) for k in names) + "\n")
+
+    return atomic_write(path, write)
+
+
 def write_modes_csv(path: Path, events: dict) -> Path:
     """modes.csv: one row per contact of each clearance joint (``analysis.contact_events``):
     joint, onset_s, end_s, duration_s, mode (impact or continuous), finished (0 for a contact

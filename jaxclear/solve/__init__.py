@@ -1,6 +1,7 @@
 """Solving: the front door ``simulate``, solver settings and presets, the custom stepping methods
 (Lawson, IMEX), extremes tracked in the solve, start-up helpers and the ``Trajectory`` result."""
 
+from ._extremes import combine_extremes as combine_extremes
 from ._simulate import assemble as assemble
 from ._simulate import failure_error as failure_error
 from ._simulate import simulate as simulate
@@ -17,4 +18,5 @@ from ._trajectory import BODY_OUTPUTS as BODY_OUTPUTS
 from ._trajectory import CLEARANCE_OUTPUTS as CLEARANCE_OUTPUTS
 from ._trajectory import Trajectory as Trajectory
 from ._trajectory import finite_rows as finite_rows
+from ._trajectory import join_trajectories as join_trajectories
 from ._trajectory import window as window

@@ -32,6 +32,7 @@ import diffrax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 
@@ -375,3 +376,70 @@ class ExtremesTracking(AbstractWrappingSolver):
         first, second = (jax.tree_util.tree_map(lambda x, i=i: x[i], both) for i in (0, 1))
         tracker = tracker.update(t_mid, first).update(t1, second)
         return y1, y_error, dense_info, (inner, tracker), result
+
+
+def _merge_events(parts, seams, joint: str):
+    """One joint's finished contacts over consecutive solves, the onset of the one in progress at
+    the end and how many contacts overflowed the buffers; a contact in progress across a seam (the later solve starts it at its first
+    instant, ``Tracker.first``) is joined into one."""
+    rows, open_onset, lost = [], np.nan, 0
+    for x, seam in zip(parts, seams):
+        buffer, count = np.asarray(x.events[joint]), int(x.event_count[joint])
+        lost += max(count - buffer.shape[0], 0)
+        stored = buffer[:count].copy()
+        onset_now = float(x.contact_onset[joint])
+        if np.isfinite(open_onset):
+            if stored.shape[0] and stored[0, 0] == seam:
+                stored[0, 0] = open_onset  # the contact in progress at the seam ended here
+            elif stored.shape[0] == 0 and onset_now == seam:
+                onset_now = open_onset  # and is still in progress at this solve's end
+        rows.append(stored)
+        open_onset = onset_now
+    return np.concatenate(rows, axis=0), open_onset, lost
+
+
+def combine_extremes(parts: "list[Extremes]", seams) -> Extremes:
+    """The ``Extremes`` of consecutive solves (each started from the last one's final state) as if
+    one solve had covered them all: peaks over all, integrals and durations summed, contact events
+    concatenated with contacts across a seam joined. Host-side (concrete, unbatched values).
+
+    Args:
+        parts: the solves' ``Extremes``, in time order.
+        seams: each solve's start time, s (where a contact in progress is joined to the last one).
+    """
+    if not parts:
+        raise ValueError("combine_extremes needs at least one Extremes.")
+    durations = [float(x.duration) for x in parts]
+    used = [x for x, d in zip(parts, durations) if d > 0] or [parts[-1]]
+
+    def fold(name, op):
+        return jax.tree_util.tree_map(
+            lambda *v: jnp.asarray(op(np.stack([np.asarray(a) for a in v]), axis=0)),
+            *(getattr(x, name) for x in parts),
+        )
+
+    joints = list(parts[0].events)
+    merged = {k: _merge_events(parts, seams, k) for k in joints}
+    last = parts[-1]
+    return Extremes(
+        start=jnp.asarray(used[0].start),
+        duration=jnp.asarray(sum(durations)),
+        acceleration_min=fold("acceleration_min", np.min),
+        acceleration_max=fold("acceleration_max", np.max),
+        body_acceleration_max=fold("body_acceleration_max", np.max),
+        input_torque_min=fold("input_torque_min", np.min),
+        input_torque_max=fold("input_torque_max", np.max),
+        input_torque_square_integral=fold("input_torque_square_integral", np.sum),
+        body_acceleration_square_integral=fold("body_acceleration_square_integral", np.sum),
+        normal_force_max=fold("normal_force_max", np.max),
+        penetration_max=fold("penetration_max", np.max),
+        constraint_violation_max=fold("constraint_violation_max", np.max),
+        times=last.times,
+        recent=last.recent,
+        contact_onset={k: jnp.asarray(merged[k][1]) for k in joints},
+        events={k: jnp.asarray(merged[k][0]) for k in joints},
+        # more contacts than stored where a solve's buffer overflowed: contact_events then refuses
+        event_count={
+            k: jnp.asarray(merged[k][0].shape[0] + merged[k][2], dtype=jnp.int32) for k in joints
+        },
+    )

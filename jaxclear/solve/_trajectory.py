@@ -10,7 +10,7 @@ import numpy as np
 from jaxtyping import Array, Float, Int
 
 from ..model import Mechanism
-from ._extremes import Extremes
+from ._extremes import Extremes, combine_extremes
 
 PER_INSTANT = (
     "t",
@@ -225,3 +225,44 @@ def finite_rows(traj):
         values = np.asarray(getattr(traj, name))
         finite &= np.all(np.isfinite(values.reshape(values.shape[0], -1)), axis=1)
     return _select(traj, finite)
+
+
+def join_trajectories(parts: "list[Trajectory]") -> "Trajectory":
+    """Consecutive single solves, each started from the last one's final state at its end time
+    (``jaxclear.simulate_revolutions``), as one ``Trajectory``: the saved instants in time order
+    with each seam kept once, the extremes of all solves combined (``combine_extremes``), the
+    solver counts summed; outcome, final time and state are the last solve's, or the first failed
+    one's (the solves after a failure are left out).
+
+    Raises:
+        ValueError: no parts, or a batched one.
+    """
+    if not parts:
+        raise ValueError("join_trajectories needs at least one trajectory.")
+    if any(np.ndim(p.t_final) for p in parts):
+        raise ValueError("join_trajectories takes single (unbatched) trajectories.")
+    failed = [i for i, p in enumerate(parts) if not bool(p.succeeded)]
+    parts = parts[: failed[0] + 1] if failed else parts
+    changes = {}
+    for name in PER_INSTANT:  # on the host: an eager jnp.concatenate compiles per new shape
+        pieces = [
+            jax.tree_util.tree_map(
+                lambda x, i=i: np.asarray(x)[0 if i == 0 else 1 :], getattr(p, name)
+            )
+            for i, p in enumerate(parts)
+        ]
+        changes[name] = jax.tree_util.tree_map(
+            lambda *x: jnp.asarray(np.concatenate(x, axis=0)), *pieces
+        )
+    extremes = None
+    if all(p.extremes is not None for p in parts):
+        extremes = combine_extremes([p.extremes for p in parts], [float(p.t[0]) for p in parts])
+    total = lambda name: jnp.asarray(sum(int(getattr(p, name)) for p in parts))  # noqa: E731
+    return dataclasses.replace(
+        parts[-1],
+        **changes,
+        extremes=extremes,
+        num_steps=total("num_steps"),
+        num_accepted_steps=total("num_accepted_steps"),
+        num_rejected_steps=total("num_rejected_steps"),
+    )
