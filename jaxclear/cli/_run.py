@@ -53,7 +53,7 @@ MODES_CSV = "modes.csv"
 REVOLUTIONS_CSV = "revolutions.csv"
 
 WARMUP_FRACTION = 1e-3
-"""The warm-up (compile) call integrates this fraction of the horizon; see ``timed_simulate``."""
+"""The warm-up (compile) call integrates this fraction of the horizon; see ``timed_revolutions``."""
 
 DESCRIPTION = """\
 Simulate a planar mechanism with revolute clearance joints and write results.csv, results.npz,
