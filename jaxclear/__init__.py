@@ -38,6 +38,7 @@ from .model import Mechanism as Mechanism  # noqa: E402
 from .model import ParameterInfo as ParameterInfo  # noqa: E402
 from .model import RevoluteJoint as RevoluteJoint  # noqa: E402
 from .model import SpringDamper as SpringDamper  # noqa: E402
+from .model import TranslationalClearanceJoint as TranslationalClearanceJoint  # noqa: E402
 from .model import TranslationalJoint as TranslationalJoint  # noqa: E402
 from .model import get_parameter as get_parameter  # noqa: E402
 from .model import parameter_info as parameter_info  # noqa: E402

@@ -1,5 +1,6 @@
 """Benchmark mechanisms: the slider–crank of docs/model.md §6 and a four-bar linkage."""
 
+import jax
 import jax.numpy as jnp
 from jaxtyping import ArrayLike
 
@@ -8,6 +9,7 @@ from .model._body import Body
 from .model._clearance import ClearanceJoint
 from .model._joints import ConstantSpeedDriver, RevoluteJoint, TranslationalJoint
 from .model._mechanism import Mechanism
+from .model._translational_clearance import TranslationalClearanceJoint
 
 RPM = 2.0 * jnp.pi / 60.0  # rad/s per rpm
 
@@ -22,7 +24,7 @@ def _gravity(gravity: bool | float):
 
 def slider_crank(
     *,
-    rpm: ArrayLike = 5000.0,
+    rpm: ArrayLike | None = 5000.0,
     crank_length: ArrayLike = 0.05,
     rod_length: ArrayLike = 0.12,
     crank_mass: ArrayLike = 0.30,
@@ -34,6 +36,8 @@ def slider_crank(
     initial_angle: ArrayLike = 0.0,
     gravity: bool | float = False,
     clearance_joints=(),
+    translational_clearance=None,
+    initial_speed: ArrayLike | None = None,
     **clearance_options,
 ) -> Mechanism:
     """The benchmark slider–crank (docs/model.md §6): crank O–A, connecting rod A–B, slider at B.
@@ -42,7 +46,7 @@ def slider_crank(
     centre (slider at x = r + l), centres of mass at link mid-points, crank driven at constant speed.
 
     Args:
-        rpm: crank speed, rev/min.
+        rpm: crank speed, rev/min; ``None`` for a free (undriven) crank, see ``initial_speed``.
         crank_length, rod_length: r and l, m (l > r).
         crank_mass, rod_mass, slider_mass: kg. crank_inertia, rod_inertia, slider_inertia: kg m².
         initial_angle: crank angle at t = 0, rad.
@@ -56,10 +60,20 @@ def slider_crank(
             ``"slider"`` at B), ``geometry``, ``contact_law``, ``friction_law``, ``smoothing``,
             ``initial_eccentricity``, ``lubrication`` (a ``jaxclear.Lubrication`` film,
             docs/model.md §3b; e.g. ``clearance_joints={"B": {"lubrication": film}}``).
+        translational_clearance: ``None`` (default) for an ideal slider guide; else the guide
+            ``slider_guide`` becomes a ``TranslationalClearanceJoint`` (docs/model.md §2c): a
+            clearance c in m, or a mapping of ``TranslationalClearanceJoint.replacing`` options
+            (``clearance``, ``half_length``, ``half_height``, ``contact_law``, ``friction_law``,
+            ``smoothing``, ``initial_offset``, ``initial_tilt``). Defaults: the slider of Flores,
+            Leine & Glocker (2010), a = 0.05 m, b = 0.025 m, c = 1 mm.
+        initial_speed: with ``rpm=None`` (no driver: the crank turns freely), the crank's angular
+            velocity at t = 0, rad/s (default 0); the other bodies start with the matching
+            velocities of the ideal mechanism.
 
     Returns:
         The ``Mechanism`` with bodies ``crank``, ``rod``, ``slider``; ideal joints ``O``, ``A``,
-        ``B`` (revolute) and ``slider_guide`` (translational); driver ``driver``.
+        ``B`` (revolute) and ``slider_guide`` (translational, or a translational clearance joint);
+        driver ``driver`` (none with ``rpm=None``).
     """
     crank, rod = crank_length, rod_length
     if isinstance(crank, float | int) and isinstance(rod, float | int) and not rod > crank > 0:
@@ -68,14 +82,35 @@ def slider_crank(
             "a shorter rod cannot reach the slider guide at every crank angle."
         )
     th = initial_angle
-    c, s = jnp.cos(th), jnp.sin(th)
-    ax, ay = crank * c, crank * s
-    bx = ax + jnp.sqrt(jnp.maximum(rod**2 - ay**2, 0.0))
-    rod_phi = jnp.arctan2(-ay, bx - ax)
+    if rpm is None:
+        if initial_speed is None:
+            initial_speed = 0.0
+    elif initial_speed is not None:
+        raise ModelError(
+            "slider_crank: initial_speed is for a free crank (rpm=None); a driven crank turns at rpm."
+        )
+
+    def positions(th):
+        c, s = jnp.cos(th), jnp.sin(th)
+        ax, ay = crank * c, crank * s
+        bx = ax + jnp.sqrt(jnp.maximum(rod**2 - ay**2, 0.0))
+        rod_phi = jnp.arctan2(-ay, bx - ax)
+        return (
+            jnp.stack([0.5 * ax, 0.5 * ay, th]),
+            jnp.stack([0.5 * (ax + bx), 0.5 * ay, rod_phi]),
+            jnp.stack([bx, jnp.zeros_like(bx), jnp.zeros_like(bx)]),
+        )
+
+    th = jnp.asarray(th, dtype=float)
+    places = positions(th)
+    if rpm is None:
+        speeds = jax.jvp(positions, (th,), (jnp.asarray(initial_speed, dtype=float),))[1]
+    else:
+        speeds = (jnp.zeros(3),) * 3
     bodies = (
-        Body("crank", crank_mass, crank_inertia, position=(0.5 * ax, 0.5 * ay, th)),
-        Body("rod", rod_mass, rod_inertia, position=(0.5 * (ax + bx), 0.5 * ay, rod_phi)),
-        Body("slider", slider_mass, slider_inertia, position=(bx, 0.0, 0.0)),
+        Body("crank", crank_mass, crank_inertia, position=places[0], velocity=speeds[0]),
+        Body("rod", rod_mass, rod_inertia, position=places[1], velocity=speeds[1]),
+        Body("slider", slider_mass, slider_inertia, position=places[2], velocity=speeds[2]),
     )
     revolute = {
         "O": RevoluteJoint("O", "ground", (0.0, 0.0), "crank", (-0.5 * crank, 0.0)),
@@ -91,13 +126,56 @@ def slider_crank(
     guide = TranslationalJoint(
         "slider_guide", "slider", (0.0, 0.0), "ground", (0.0, 0.0), axis=(1.0, 0.0)
     )
+    sliders = make_translational_clearance(guide, translational_clearance, "slider_crank")
     return Mechanism(
         bodies=bodies,
-        joints=(*joints, guide),
-        driver=ConstantSpeedDriver(body="crank", speed=rpm * RPM, initial_angle=th),
+        joints=(*joints, guide) if not sliders else tuple(joints),
+        driver=(
+            None
+            if rpm is None
+            else ConstantSpeedDriver(body="crank", speed=rpm * RPM, initial_angle=initial_angle)
+        ),
         clearance_joints=clearance_elements,
         gravity=_gravity(gravity),
+        translational_clearance_joints=sliders,
     )
+
+
+TRANSLATIONAL_CLEARANCE_OPTIONS = frozenset(
+    {
+        "clearance",
+        "half_length",
+        "half_height",
+        "contact_law",
+        "friction_law",
+        "smoothing",
+        "initial_offset",
+        "initial_tilt",
+    }
+)
+"""Keyword arguments of ``TranslationalClearanceJoint.replacing`` accepted by ``slider_crank``."""
+
+FLORES_LEINE_GLOCKER_SLIDER = {"half_length": 0.05, "half_height": 0.025, "clearance": 1e-3}
+"""Slider and guide of Flores, Leine & Glocker (2010), Table 1: a, b, c in m."""
+
+
+def make_translational_clearance(joint, spec, owner: str) -> tuple:
+    """``()`` for ``spec=None``, else a one-joint tuple: the ``TranslationalClearanceJoint`` that
+    replaces the ideal translational ``joint``, from a clearance (m) or a mapping of options."""
+    if spec is None or spec is False:
+        return ()
+    if spec is True:
+        spec = {}
+    if not isinstance(spec, dict):
+        spec = {"clearance": spec}
+    bad = set(spec) - TRANSLATIONAL_CLEARANCE_OPTIONS
+    if bad:
+        raise TypeError(
+            f"{owner}: unknown translational_clearance option(s) {sorted(bad)}; options are "
+            f"{sorted(TRANSLATIONAL_CLEARANCE_OPTIONS)}."
+        )
+    options = {**FLORES_LEINE_GLOCKER_SLIDER, **spec}
+    return (TranslationalClearanceJoint.replacing(joint, **options),)
 
 
 def four_bar(

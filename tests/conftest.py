@@ -18,6 +18,8 @@ LONGEST_FIRST = (
     "test_cli.py",
     "test_executable_cache.py",
     "test_clearance_joint.py",
+    "test_translational_clearance.py",
+    "test_revolutions.py",
     "test_force_elements.py",
     "test_statistics.py",
     "test_lawson.py",

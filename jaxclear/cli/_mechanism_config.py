@@ -48,6 +48,11 @@ from ..contact import (
     contact_law_from_name,
 )
 from ..friction import FRICTION_LAWS, friction_law_from_name
+from ..mechanisms import FLORES_LEINE_GLOCKER_SLIDER
+from ..model._translational_clearance import (
+    DEFAULT_CORNER_STIFFNESS,
+    TranslationalClearanceJoint,
+)
 from ._common import UsageError, one_line
 from ._config import Settings
 from ._settings import PER_JOINT
@@ -154,10 +159,21 @@ def build_mechanism(settings: Settings, clearance: bool = True):
     names = clearance_joint_names(settings, ideal) if clearance else []
     if not names:
         return ideal
-    spec = {joint: joint_options(settings, joint) for joint in names}
+    sliders = translational_names(ideal)
+    spec = {
+        joint: translational_options(settings, joint)
+        if joint in sliders
+        else joint_options(settings, joint)
+        for joint in names
+    }
     films = {joint: spec[joint].pop("lubrication", None) for joint in names}
     mechanism = _custom(settings, spec) if name == "custom" else _benchmark(settings, spec)
     return with_lubrication(mechanism, films)
+
+
+def translational_names(mechanism) -> list[str]:
+    """Names of the ideal translational joints of ``mechanism`` (those a clearance can replace)."""
+    return [j.name for j in mechanism.joints if isinstance(j, jaxclear.TranslationalJoint)]
 
 
 def with_lubrication(mechanism, films: dict):
@@ -180,11 +196,17 @@ def _benchmark(settings: Settings, spec: dict):
     params = {k: v for k, v in settings.config["mechanism"].items() if k not in ("name", "gravity")}
     gravity = settings.config["mechanism"]["gravity"]
     builder = getattr(jaxclear.mechanisms, name)
+    sliders = {k: v for k, v in spec.items() if "half_length" in v}  # translational_options
+    revolute = {k: v for k, v in spec.items() if k not in sliders}
+    extra = (
+        {"translational_clearance": sliders["slider_guide"]} if "slider_guide" in sliders else {}
+    )
     try:
         return builder(
             **{k: float(v) for k, v in params.items()},
             gravity=gravity if isinstance(gravity, bool) else float(gravity),
-            clearance_joints=spec,
+            clearance_joints=revolute,
+            **extra,
         )
     except (jaxclear.ModelError, ValueError, TypeError) as e:
         raise UsageError(f"invalid {name}: {one_line(e)}") from None
@@ -194,22 +216,37 @@ def clearance_joint_names(settings: Settings, ideal) -> list[str]:
     """The clearance joints of the run, checked against the ideal mechanism's revolute joints.
 
     Raises:
-        UsageError: unknown or repeated joint, a translational joint, or a per-joint table
-            ``[clearance.<joint>]`` for a joint that is not listed.
+        UsageError: unknown or repeated joint, a translational joint without its own
+            ``[clearance.<joint>] clearance``, or a per-joint table ``[clearance.<joint>]`` for a
+            joint that is not listed.
     """
     source = settings.source("clearance", "joints")
     text = settings.config["clearance"]["joints"].strip()
     names = [] if text.lower() == "none" else [n.strip() for n in text.split(",") if n.strip()]
     revolute = [j.name for j in ideal.joints if isinstance(j, jaxclear.RevoluteJoint)]
+    # a translational joint takes a translational clearance (docs/model.md §2c) when its own table
+    # gives the guide's clearance: the shared [clearance] values describe pins in holes
+    guides = [
+        n for n in translational_names(ideal) if "clearance" in settings.joint_tables.get(n, {})
+    ]
     other = {
-        j.name: type(j).__name__ for j in ideal.joints if not isinstance(j, jaxclear.RevoluteJoint)
+        j.name: type(j).__name__
+        for j in ideal.joints
+        if not isinstance(j, jaxclear.RevoluteJoint) and j.name not in guides
     }
     for joint in names:
         if joint in other:
+            hint = (
+                f", or to a translational joint given its guide's clearance in a table "
+                f"[clearance.{joint}] clearance = c"
+                if other[joint] == "TranslationalJoint"
+                else ""
+            )
             raise UsageError(
                 f"{source}: joint {joint!r} is a {other[joint]}; clearance applies to revolute joints only "
-                f"({', '.join(revolute) or 'the mechanism has none'})"
+                f"({', '.join(revolute) or 'the mechanism has none'}){hint}"
             )
+    revolute += guides
     bad = [n for n in names if n not in revolute]
     if bad or len(set(names)) != len(names) or (not names and text.lower() != "none"):
         raise UsageError(
@@ -275,6 +312,37 @@ def joint_options(settings: Settings, joint: str) -> dict:
     contact_params = {"restitution": c["restitution"]} if "restitution" in fields else {}
     if "num_gauss_points" in fields:
         contact_params.update(num_gauss_points=c["gauss_points"], num_elements=c["elements"])
+    friction_params = _friction_params(c, where, joint)
+    try:
+        contact_law = contact_law_from_name(c["contact"], **contact_params)
+        friction_law = friction_law_from_name(c["friction"], **friction_params)
+    except (jaxclear.ModelError, ValueError, TypeError) as e:
+        raise UsageError(f"clearance joint {joint}: {one_line(e)}") from None
+    options = dict(
+        clearance=c["clearance"],
+        geometry=geometry,
+        contact_law=contact_law,
+        friction_law=friction_law,
+        smoothing=_smoothing(c),
+    )
+    if c.get("journal_body") is not None:
+        options["journal_body"] = c["journal_body"]
+    if c.get("lubrication") is not None:
+        options["lubrication"] = lubrication_from_table(where("lubrication"), c["lubrication"])
+    return options
+
+
+def _smoothing(c: dict) -> Smoothing:
+    return Smoothing(
+        penetration_width=c["penetration_width"],
+        memory_width=c["memory_width"],
+        velocity_width=c["velocity_width"],
+        memory_rate=c["memory_rate"],
+    )
+
+
+def _friction_params(c: dict, where, joint: str) -> dict:
+    """Keyword arguments of the joint's friction law from the resolved per-joint values ``c``."""
     ffields = {f.name for f in dataclasses.fields(FRICTION_LAWS[c["friction"]])}
     friction_params = {}
     if c["friction_coefficient"] is not None:
@@ -291,28 +359,98 @@ def joint_options(settings: Settings, joint: str) -> dict:
                     f"{where(key)} applies to the lugre friction law only (joint {joint} uses {c['friction']!r})"
                 )
             friction_params[key] = c[key]
+    return friction_params
+
+
+CORNER_CONTACT_LAWS = (
+    "flores",
+    "lankarani-nikravesh",
+    "hunt-crossley",
+    "gonthier",
+    "zhiying-qishao",
+    "hertz",
+    "impact",
+)
+"""Contact laws a translational clearance joint accepts (point laws: a corner on a plane); the
+first is its default where ``contact`` is not given."""
+
+TRANSLATIONAL_KEYS = {
+    "half_length": ("m", "slider half-length a", FLORES_LEINE_GLOCKER_SLIDER["half_length"]),
+    "half_height": ("m", "slider half-height b", FLORES_LEINE_GLOCKER_SLIDER["half_height"]),
+    "contact_stiffness": ("N/m^n", "corner contact stiffness K", DEFAULT_CORNER_STIFFNESS),
+}
+"""Per-joint keys of a translational clearance joint besides the shared ones (``clearance`` is the
+guide's clearance c, the guide half-width being b + c): unit, meaning, default. They are read
+from ``[clearance.<joint>]`` where the settings table declares them (``_settings.PER_JOINT``)."""
+
+
+def translational_options(settings: Settings, joint: str) -> dict:
+    """``TranslationalClearanceJoint.replacing`` options of a translational joint (docs/model.md
+    §2c): ``clearance``, ``half_length``, ``half_height``, the corner contact law (``contact``
+    among ``CORNER_CONTACT_LAWS``, default flores; ``restitution``; ``contact_stiffness``), the
+    friction law and the smoothing widths; shared [clearance] values overridden by
+    ``[clearance.<joint>]``.
+
+    Raises:
+        UsageError: a contact law that does not apply to a corner, a non-positive length, or a key
+            that applies to revolute joints only (``journal_body``, ``lubrication``).
+    """
+    c: dict[str, Any] = {s.key: settings.config["clearance"].get(s.key) for s in PER_JOINT}
+    override = settings.joint_tables.get(joint, {})
+    c.update(override)
+
+    def where(key: str) -> str:
+        if key in override:
+            return f"[clearance.{joint}] {key}"
+        return settings.sources.get(("clearance", key), f"[clearance] {key} default")
+
+    for key in ("journal_body", "lubrication"):
+        if override.get(key) is not None:
+            raise UsageError(
+                f"{where(key)}: applies to revolute clearance joints only; {joint!r} is a "
+                "translational joint (keys: clearance, half_length, half_height, contact, "
+                "restitution, contact_stiffness, friction, ...)"
+            )
+    contact = c["contact"]
+    if contact not in CORNER_CONTACT_LAWS:
+        if "contact" not in override and settings.source("clearance", "contact") == "default":
+            contact = CORNER_CONTACT_LAWS[0]
+        else:
+            raise UsageError(
+                f"{where('contact')}: contact law {contact!r} does not apply to the corners of "
+                f"translational clearance joint {joint!r}; choose one of "
+                f"{', '.join(CORNER_CONTACT_LAWS)}"
+            )
+    if c["friction"] not in FRICTION_LAWS:
+        raise UsageError(
+            f"{where('friction')}: friction law {c['friction']!r} is unknown; choose one of {', '.join(FRICTION_LAWS)}"
+        )
+    sizes = {key: c.get(key) for key in TRANSLATIONAL_KEYS}
+    sizes = {
+        key: TRANSLATIONAL_KEYS[key][2] if value is None else value for key, value in sizes.items()
+    }
+    for key, value in (("clearance", c["clearance"]), *sizes.items()):
+        if not value > 0:
+            raise UsageError(
+                f"{where(key)} must be positive, got {value} ({TRANSLATIONAL_KEYS.get(key, ('m', 'guide clearance c'))[1]})"
+            )
+    fields = {f.name for f in dataclasses.fields(CONTACT_LAWS[contact])}
+    contact_params: dict[str, Any] = {"stiffness": sizes["contact_stiffness"]}
+    if "restitution" in fields:
+        contact_params["restitution"] = c["restitution"]
     try:
-        contact_law = contact_law_from_name(c["contact"], **contact_params)
-        friction_law = friction_law_from_name(c["friction"], **friction_params)
+        contact_law = contact_law_from_name(contact, **contact_params)
+        friction_law = friction_law_from_name(c["friction"], **_friction_params(c, where, joint))
     except (jaxclear.ModelError, ValueError, TypeError) as e:
         raise UsageError(f"clearance joint {joint}: {one_line(e)}") from None
-    options = dict(
+    return dict(
         clearance=c["clearance"],
-        geometry=geometry,
+        half_length=sizes["half_length"],
+        half_height=sizes["half_height"],
         contact_law=contact_law,
         friction_law=friction_law,
-        smoothing=Smoothing(
-            penetration_width=c["penetration_width"],
-            memory_width=c["memory_width"],
-            velocity_width=c["velocity_width"],
-            memory_rate=c["memory_rate"],
-        ),
+        smoothing=_smoothing(c),
     )
-    if c.get("journal_body") is not None:
-        options["journal_body"] = c["journal_body"]
-    if c.get("lubrication") is not None:
-        options["lubrication"] = lubrication_from_table(where("lubrication"), c["lubrication"])
-    return options
 
 
 # --- custom mechanisms ----------------------------------------------------------------------------
@@ -508,16 +646,25 @@ def _custom(settings: Settings, spec: dict | None = None):
     g = 9.81 if gravity is True else (0.0 if gravity is False else float(gravity))
     revolute = {j.name: j for j in joints if isinstance(j, jaxclear.RevoluteJoint)}
     try:
-        clearance = jaxclear.mechanisms.make_clearance_joints(
-            revolute, spec or {}, {}, "custom mechanism"
+        spec = spec or {}
+        guides = {j.name: j for j in joints if isinstance(j, jaxclear.TranslationalJoint)}
+        sliders = tuple(
+            TranslationalClearanceJoint.replacing(guides[name], **options)
+            for name, options in spec.items()
+            if name in guides
         )
+        clearance = jaxclear.mechanisms.make_clearance_joints(
+            revolute, {k: v for k, v in spec.items() if k not in guides}, {}, "custom mechanism"
+        )
+        replaced = {c.name for c in clearance} | {c.name for c in sliders}
         return jaxclear.Mechanism(
             bodies=tuple(bodies),
-            joints=tuple(j for j in joints if j.name not in {c.name for c in clearance}),
+            joints=tuple(j for j in joints if j.name not in replaced),
             driver=driver,
             forces=tuple(forces),
             clearance_joints=clearance,
             gravity=(0.0, -g),
+            translational_clearance_joints=sliders,
         )
     except (jaxclear.ModelError, ValueError, TypeError) as e:
         raise UsageError(f"invalid custom mechanism: {one_line(e)}") from None

@@ -467,9 +467,10 @@ def write_run_outputs(
     stage = staged.stage
     files = []
     if plots:
-        from ..plot import save_standard_plots
+        from ..plot import save_standard_plots, save_translational_plots
 
         files = [p.name for p in save_standard_plots(kept, stage, reference=reference)]
+        files += [p.name for p in save_translational_plots(kept, stage)]  # slider tilt, corners
     modes = (
         _contact_modes(traj, kept, fraction, period, t_keep)
         if names

@@ -13,6 +13,7 @@ import numpy as np
 from .._core._errors import AssemblyError
 from .._core._executable_cache import stored_jit
 from . import _clearance as clearance
+from . import _translational as translational
 from ._constraints import constraints
 
 NEWTON_ITERATIONS = 40
@@ -23,11 +24,16 @@ STEP_LENGTHS = np.array([1.0, 0.5, 0.25, 0.125, 0.0625])  # damped Newton step l
 
 
 def assembly_constraints(mechanism, q, t):
-    """Φ plus the clearance joints' assembly rows (journal at its initial eccentricity)."""
+    """Φ plus the clearance joints' assembly rows (journal at its initial eccentricity; slider at its
+    initial tilt and lateral offset in a translational clearance joint's guide)."""
     rows = [constraints(mechanism, q, t)]
     rows += [
         clearance.assembly_constraint(joint, mechanism.index, q, t)
         for joint in mechanism.clearance_joints
+    ]
+    rows += [
+        translational.assembly_constraint(joint, mechanism.index, q, t)
+        for joint in mechanism.translational_clearance_joints
     ]
     return jnp.concatenate(rows)
 
@@ -41,6 +47,11 @@ def assembly_labels(mechanism) -> list[str]:
         labels += [
             f"{type(joint).__name__} {joint.name!r} (journal at its initial eccentricity) row {k}"
             for k in range(clearance.ASSEMBLY_EQUATIONS)
+        ]
+    for joint in mechanism.translational_clearance_joints:
+        labels += [
+            f"{type(joint).__name__} {joint.name!r} (slider at its initial tilt and offset) row {k}"
+            for k in range(translational.ASSEMBLY_EQUATIONS)
         ]
     return labels
 

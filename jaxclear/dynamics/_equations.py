@@ -16,6 +16,7 @@ import numpy as np
 from jaxtyping import Array, Float
 
 from . import _clearance as clearance
+from . import _translational as translational
 from ._constraints import constraint_jacobian, constraints, gamma
 from ._groups import GroupCache, evaluation_groups
 
@@ -228,6 +229,10 @@ def memory_offset_shift(mechanism, y) -> Float[Array, " N"]:
         rate = clearance.kinematics(joint, mechanism.index, q, qd).penetration_rate
         for r in joint.memory_state_rows:
             shift = shift.at[slices[joint.name].start + r].set(rate)
+    for joint in mechanism.translational_clearance_joints:
+        rates = translational.memory_shift(joint, mechanism.index, q, qd)
+        for k, r in enumerate(joint.memory_state_rows):
+            shift = shift.at[slices[joint.name].start + r].set(rates[k])
     return shift
 
 
@@ -240,11 +245,17 @@ def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
     return jnp.concatenate([jnp.reshape(jnp.asarray(p, dtype=float), (-1,)) for p in parts])
 
 
-def clearance_outputs(mechanism, evaluation: Evaluation) -> dict[str, "clearance.ClearanceOutputs"]:
-    """{clearance joint name: ``ClearanceOutputs``} at the instant of ``evaluation``."""
-    return {
+def clearance_outputs(mechanism, evaluation: Evaluation) -> dict:
+    """{clearance joint name: ``ClearanceOutputs``} at the instant of ``evaluation``, and for each
+    translational clearance joint its ``TranslationalClearanceOutputs``."""
+    out = {
         c.name: clearance.outputs(
             c, mechanism.index, evaluation.q, evaluation.qd, evaluation.states[c.name]
         )
         for c in mechanism.clearance_joints
     }
+    for c in mechanism.translational_clearance_joints:
+        out[c.name] = translational.outputs(
+            c, mechanism.index, evaluation.q, evaluation.qd, evaluation.states[c.name]
+        )
+    return out

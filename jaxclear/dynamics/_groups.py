@@ -6,11 +6,12 @@ is evaluated through one interface, ``AbstractEvaluationGroup``: the generalised
 the stiff rates, the initial states. A group is one force element (``ForceElementGroup``: its own
 hooks), one clearance joint (``ClearanceJointGroup``: ``dynamics._clearance``) or several
 clearance joints of the same kind evaluated in one vmap (``BatchedClearanceJoints``:
-``dynamics._batched``). The equations loop once over ``evaluation_groups``.
+``dynamics._batched``) or one translational clearance joint (``TranslationalClearanceGroup``:
+``dynamics._translational``). The equations loop once over ``evaluation_groups``.
 
 The order of the groups is the order of the terms in the sum of generalised forces (after
 gravity): the force elements in order, then the clearance groups in the order of their first
-joints. Results are reproducible to the last bit only in that order (the contact history of a
+joints, then the translational clearance joints. Results are reproducible to the last bit only in that order (the contact history of a
 long run forks under rounding-level changes).
 """
 
@@ -23,7 +24,9 @@ from jaxtyping import Array, Float
 
 from ..model._clearance import ClearanceJoint
 from ..model._forces import AbstractForceElement
+from ..model._translational_clearance import TranslationalClearanceJoint
 from . import _clearance as clearance
+from . import _translational as translational
 from ._batched import (
     batched_force_and_cache,
     batched_state_rates,
@@ -191,10 +194,54 @@ class BatchedClearanceJoints(AbstractEvaluationGroup):
         }
 
 
+class TranslationalClearanceGroup(AbstractEvaluationGroup):
+    """One translational clearance joint, evaluated by ``dynamics._translational``.
+
+    Its ``contacts`` entry holds per-corner arrays (4,): ``CornerKinematics.penetration`` and
+    ``CornerForces.normal_force``.
+    """
+
+    joint: TranslationalClearanceJoint
+
+    def per_element(self, stacked) -> dict[str, Array]:
+        return {self.joint.name: stacked}
+
+    def initial_states(self, mechanism, q, qd):
+        return {self.joint.name: translational.initial_state(self.joint, mechanism.index, q, qd)}
+
+    def force_and_cache(self, mechanism, t, q, qd, states, gamma_h=None):
+        c = self.joint
+        force, cache, stage = translational.force_and_cache(
+            c, mechanism.index, q, qd, states[c.name], gamma_h
+        )
+        return force, GroupCache(cache, stage)
+
+    def state_rates(self, mechanism, cache, t, q, qd, qdd, states):
+        c = self.joint
+        rate = translational.state_derivative_cached(
+            c, cache.shared, mechanism.index, q, qd, qdd, states[c.name]
+        )
+        return {c.name: rate}
+
+    def stiff_rates(self, mechanism, t, q, qd, states):
+        c = self.joint
+        return {
+            c.name: translational.stiff_state_derivative(c, mechanism.index, q, qd, states[c.name])
+        }
+
+    def contacts(self, cache):
+        return {self.joint.name: cache.shared}
+
+
 def evaluation_groups(mechanism) -> tuple[AbstractEvaluationGroup, ...]:
     """The groups of ``mechanism`` in evaluation order (static, computed while tracing): each force
-    element, then the clearance joints grouped by kind (``dynamics._batched.groups``)."""
-    return tuple(ForceElementGroup(e) for e in mechanism.forces) + tuple(
-        ClearanceJointGroup(g[0]) if len(g) == 1 else BatchedClearanceJoints(g)
-        for g in groups(mechanism)
+    element, then the clearance joints grouped by kind (``dynamics._batched.groups``), then each
+    translational clearance joint."""
+    return (
+        tuple(ForceElementGroup(e) for e in mechanism.forces)
+        + tuple(
+            ClearanceJointGroup(g[0]) if len(g) == 1 else BatchedClearanceJoints(g)
+            for g in groups(mechanism)
+        )
+        + tuple(TranslationalClearanceGroup(j) for j in mechanism.translational_clearance_joints)
     )

@@ -17,8 +17,8 @@ from ._files import package_versions as package_versions
 from ._files import write_csv as write_csv
 from ._files import write_json as write_json
 from ._files import write_modes_csv as write_modes_csv
-from ._files import write_revolutions_csv as write_revolutions_csv
 from ._files import write_npz as write_npz
 from ._files import write_results as write_results
+from ._files import write_revolutions_csv as write_revolutions_csv
 from ._measurements import Measurements as Measurements
 from ._measurements import estimate_noise as estimate_noise

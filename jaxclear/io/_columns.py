@@ -10,10 +10,28 @@ import dataclasses
 import numpy as np
 
 from ..analysis import MODE_NAMES, combination_shares, statistics, trajectory_modes
-from ..analysis._modes import DEFAULT_CONTINUOUS_FRACTION
+from ..analysis._modes import DEFAULT_CONTINUOUS_FRACTION, contact_modes, crank_period
 from ..mechanisms import is_slider_crank
 from ..model import RevoluteJoint, TranslationalJoint
+from ..model._translational_clearance import CORNER_NAMES
 from ..solve._trajectory import BODY_OUTPUTS, CLEARANCE_OUTPUTS
+
+TRANSLATIONAL_OUTPUTS = {
+    "offset": ("m", "lateral offset of the slider centre from the guide line (along the normal)"),
+    "tilt": ("rad", "slider tilt to the guide"),
+    "penetration": ("m", "largest corner penetration (negative: free flight)"),
+    "normal_force": ("N", "largest corner normal force"),
+    "corner_penetration": ("m", "corner penetration into its guide face (negative: gap)"),
+    "corner_penetration_rate": ("m/s", "rate of the corner penetration"),
+    "corner_normal_force": ("N", "corner normal contact force"),
+    "corner_friction_force": ("N", "corner friction force along the guide"),
+    "corner_slip_velocity": ("m/s", "corner slip velocity along the guide"),
+    "corner_impact_velocity": ("m/s", "corner impact-velocity memory"),
+    "corner_friction_state": ("m", "corner friction-law state (LuGre bristle deflection z)"),
+}
+"""Units and descriptions of a translational clearance joint's outputs. A per-corner output
+``corner_<q>`` becomes the columns ``<joint>_<q>_<corner>`` (``CORNER_NAMES``: upper_front,
+upper_rear, lower_rear, lower_front)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,7 +76,9 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     translational joint the moment and normal force the guide exerts on the slider,
     ``<joint>_moment`` (N m) and ``<joint>_normal`` (N); per clearance joint, in the mechanism's
     order, its outputs as ``<joint>_<output>`` (``CLEARANCE_OUTPUTS`` order) and its contact mode
-    ``<joint>_mode``; then ``constraint_violation`` and ``velocity_violation``.
+    ``<joint>_mode``; per translational clearance joint its ``translational_columns`` (offset,
+    tilt, per-corner penetrations and forces, modes); then ``constraint_violation`` and
+    ``velocity_violation``.
 
     Raises:
         ValueError: ``traj`` is batched.
@@ -199,6 +219,7 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
                     modes[name].astype(float),
                 )
             )
+    cols += translational_columns(traj, continuous_fraction)
     cols += [
         Column(
             "constraint_violation",
@@ -220,6 +241,56 @@ def result_columns(traj, continuous_fraction: float | None = None) -> list[Colum
     return cols
 
 
+def translational_columns(traj, continuous_fraction: float | None = None) -> list[Column]:
+    """Columns of each translational clearance joint J (docs/model.md §2c): ``J_offset``,
+    ``J_tilt``, ``J_penetration`` and ``J_normal_force`` (largest over the corners), per corner
+    ``J_<quantity>_<corner>`` (``TRANSLATIONAL_OUTPUTS``), the joint's contact mode ``J_mode``
+    (from its largest corner penetration) and the modes of its two corner pairs, ``J_mode_upper``
+    and ``J_mode_lower`` (the slider against the upper or the lower guide face)."""
+    names = translational_clearance_joint_names(traj)
+    if not names:
+        return []
+    fraction = DEFAULT_CONTINUOUS_FRACTION if continuous_fraction is None else continuous_fraction
+    t = np.asarray(traj.t, dtype=float)
+    period = crank_period(traj.mechanism) or float(t[-1] - t[0])
+    legend = ", ".join(f"{k} {v}" for k, v in MODE_NAMES.items())
+    cols = []
+    for name in names:
+        outputs = traj.clearance[name]
+        for key in outputs.keys():
+            value = np.asarray(outputs[key], dtype=float) + 0.0  # + 0.0: no '-0' in the CSV
+            unit, description = TRANSLATIONAL_OUTPUTS.get(key, ("", key.replace("_", " ")))
+            where = f"at translational clearance joint {name!r}"
+            if value.ndim == 1:
+                cols.append(Column(f"{name}_{key}", unit, f"{description} {where}", value))
+                continue
+            quantity = key.removeprefix("corner_")
+            for k, corner in enumerate(CORNER_NAMES):
+                cols.append(
+                    Column(
+                        f"{name}_{quantity}_{corner}",
+                        unit,
+                        f"{description}, {corner.replace('_', ' ')} corner, {where}",
+                        value[:, k],
+                    )
+                )
+        pen = np.asarray(outputs["corner_penetration"], dtype=float)
+        for suffix, what, depth in (
+            ("", "", pen.max(axis=1)),
+            ("_upper", " of the upper corner pair", pen[:, :2].max(axis=1)),
+            ("_lower", " of the lower corner pair", pen[:, 2:].max(axis=1)),
+        ):
+            cols.append(
+                Column(
+                    f"{name}_mode{suffix}",
+                    "",
+                    f"contact mode{what} at translational clearance joint {name!r} ({legend})",
+                    contact_modes(t, depth, fraction * period).astype(float),
+                )
+            )
+    return cols
+
+
 def body_columns(traj) -> list[Column]:
     """Position, velocity and acceleration of every body's centre of mass and frame (``BODY_OUTPUTS``)."""
     cols = []
@@ -234,7 +305,8 @@ def body_columns(traj) -> list[Column]:
 def mode_shares(traj, continuous_fraction: float, reference_period: float | None = None) -> dict:
     """Time share of each combination of contact modes over the saved instants (docs/model.md §7)."""
     modes = trajectory_modes(traj, continuous_fraction, reference_period)
-    return combination_shares({name: modes[name] for name in clearance_joint_names(traj)})
+    names = clearance_joint_names(traj) + translational_clearance_joint_names(traj)
+    return combination_shares({name: modes[name] for name in names})
 
 
 def run_statistics(traj) -> dict[str, float]:
@@ -247,11 +319,19 @@ def run_statistics(traj) -> dict[str, float]:
 
 
 def clearance_joint_names(traj) -> list[str]:
-    """Names of the trajectory's clearance joints in the mechanism's order (O, A, B for the slider–crank)."""
+    """Names of the trajectory's revolute clearance joints in the mechanism's order (O, A, B for
+    the slider–crank); translational clearance joints: ``translational_clearance_joint_names``."""
     order = [j.name for j in getattr(traj.mechanism, "clearance_joints", ())]
+    sliders = set(translational_clearance_joint_names(traj))
     return [n for n in order if n in traj.clearance] + sorted(
-        n for n in traj.clearance if n not in order
+        n for n in traj.clearance if n not in order and n not in sliders
     )
+
+
+def translational_clearance_joint_names(traj) -> list[str]:
+    """Names of the trajectory's translational clearance joints, in the mechanism's order."""
+    order = [j.name for j in getattr(traj.mechanism, "translational_clearance_joints", ())]
+    return [n for n in order if n in traj.clearance]
 
 
 def column_map(traj) -> dict[str, Column]:

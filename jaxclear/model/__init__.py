@@ -21,3 +21,4 @@ from ._parameters import get_parameter as get_parameter
 from ._parameters import parameter_info as parameter_info
 from ._parameters import parameter_names as parameter_names
 from ._parameters import with_parameters as with_parameters
+from ._translational_clearance import TranslationalClearanceJoint as TranslationalClearanceJoint

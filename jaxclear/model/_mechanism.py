@@ -14,6 +14,7 @@ from ._clearance import ClearanceJoint
 from ._element import AbstractStateElement
 from ._forces import AbstractForceElement
 from ._joints import AbstractDriver, AbstractJoint
+from ._translational_clearance import TranslationalClearanceJoint
 
 
 def _array(x):
@@ -41,6 +42,10 @@ class Mechanism(eqx.Module):
             literature value 5 (docs/model.md §1) lets the benchmark slider–crank at 5000 rpm drift to
             3e-5 m at the ideal joints (comparable to contact penetrations); 50 keeps it at 3e-7 m
             for 1.5 % more steps (measured with the 'fast' preset over 200 revolutions).
+        translational_clearance_joints: translational clearance joints
+            (``TranslationalClearanceJoint``: a slider in a wider guide, corner contact forces and
+            per-corner internal states; docs/model.md §2c). Their internal states come after the
+            clearance joints' in y.
     """
 
     bodies: tuple[Body, ...]
@@ -51,6 +56,7 @@ class Mechanism(eqx.Module):
     gravity: Float[Array, "2"] = eqx.field(converter=_array, default=(0.0, -9.81))
     baumgarte_alpha: Float[Array, ""] = eqx.field(converter=_array, default=50.0)
     baumgarte_beta: Float[Array, ""] = eqx.field(converter=_array, default=50.0)
+    translational_clearance_joints: tuple[TranslationalClearanceJoint, ...] = ()
 
     def __check_init__(self):
         names = [b.name for b in self.bodies]
@@ -66,6 +72,11 @@ class Mechanism(eqx.Module):
             ("joints", AbstractJoint, self.joints),
             ("forces", AbstractForceElement, self.forces),
             ("clearance_joints", ClearanceJoint, self.clearance_joints),
+            (
+                "translational_clearance_joints",
+                TranslationalClearanceJoint,
+                self.translational_clearance_joints,
+            ),
         ):
             for member in members:
                 if not isinstance(member, kind):
@@ -74,6 +85,11 @@ class Mechanism(eqx.Module):
                         + (
                             " (clearance joints go in clearance_joints)"
                             if isinstance(member, ClearanceJoint)
+                            else ""
+                        )
+                        + (
+                            " (translational clearance joints go in translational_clearance_joints)"
+                            if isinstance(member, TranslationalClearanceJoint)
                             else ""
                         )
                         + "."
@@ -138,8 +154,13 @@ class Mechanism(eqx.Module):
 
     @property
     def force_elements(self) -> tuple[AbstractStateElement, ...]:
-        """Force elements, then clearance joints: the order of the internal states in y."""
-        return tuple(self.forces) + tuple(self.clearance_joints)
+        """Force elements, clearance joints, then translational clearance joints: the order of the
+        internal states in y."""
+        return (
+            tuple(self.forces)
+            + tuple(self.clearance_joints)
+            + tuple(self.translational_clearance_joints)
+        )
 
     @property
     def state_slices(self) -> dict[str, slice]:
@@ -155,7 +176,7 @@ class Mechanism(eqx.Module):
         """Boolean mask (state_size,) of the rows of y that hold a clearance joint's impact-velocity
         memory (m, or its offset u = m − δ̇ in ``with_memory_offset``). NumPy, static."""
         mask = np.zeros(self.state_size, dtype=bool)
-        for joint in self.clearance_joints:
+        for joint in (*self.clearance_joints, *self.translational_clearance_joints):
             mask[[self.state_slices[joint.name].start + r for r in joint.memory_state_rows]] = True
         return mask
 
@@ -193,7 +214,15 @@ class Mechanism(eqx.Module):
         equations of motion; ``memory_offset_shift`` there converts states between the two forms).
         """
         joints = tuple(dataclasses.replace(c, memory_offset=offset) for c in self.clearance_joints)
-        return eqx.tree_at(lambda m: m.clearance_joints, self, joints)
+        sliders = tuple(
+            dataclasses.replace(c, memory_offset=offset)
+            for c in self.translational_clearance_joints
+        )
+        return eqx.tree_at(
+            lambda m: (m.clearance_joints, m.translational_clearance_joints),
+            self,
+            (joints, sliders),
+        )
 
     def replace_bodies(self, **changes):
         """Copy with some bodies replaced: ``mech.replace_bodies(crank=new_body)``."""

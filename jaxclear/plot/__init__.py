@@ -53,3 +53,7 @@ from ._runs import plot_vs_time as plot_vs_time
 from ._runs import save_mode_timeline as save_mode_timeline
 from ._runs import save_standard_plots as save_standard_plots
 from ._runs import standard_plots as standard_plots
+from ._translational import plot_corner_forces as plot_corner_forces
+from ._translational import plot_corner_gaps as plot_corner_gaps
+from ._translational import plot_slider_tilt as plot_slider_tilt
+from ._translational import save_translational_plots as save_translational_plots

@@ -554,7 +554,7 @@ def save_standard_plots(traj, out_dir, *, reference=None, dpi: int = DPI) -> lis
         and any(isinstance(j, RevoluteJoint) for j in mech.joints)
     ):
         written.append(save_figure(plot_joint_forces(traj), out_dir, "joint_forces.png", dpi))
-    if traj.clearance and traj.mechanism.driver is not None:
+    if clearance_joint_names(traj) and traj.mechanism.driver is not None:
         written.append(save_figure(plot_contact_forces(traj), out_dir, "normal_force.png", dpi))
         for name in clearance_joint_names(traj):
             written.append(save_figure(plot_orbit(traj, name), out_dir, f"orbit_{name}.png", dpi))

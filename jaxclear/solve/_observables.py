@@ -59,6 +59,11 @@ def input_error(mechanism, y0, assembled_ok):
     ).astype(jnp.int32)
 
 
+def _largest(x):
+    """A scalar as it is; the largest entry of a per-corner array."""
+    return x if jnp.ndim(x) == 0 else jnp.max(x)
+
+
 def observe(t, y, mechanism) -> Observation:
     """What ``ExtremesTracking`` records at the end of each step (``jaxclear.solve._extremes``).
 
@@ -72,8 +77,9 @@ def observe(t, y, mechanism) -> Observation:
     normal_force, penetration = {}, {}
     for group, cache in zip(evaluation_groups(mechanism), caches):
         for name, (kinematics, contact) in group.contacts(cache).items():
-            normal_force[name] = contact.normal_force
-            penetration[name] = kinematics.penetration
+            # a translational clearance joint has one value per corner: its entry is the largest
+            normal_force[name] = _largest(contact.normal_force)
+            penetration[name] = _largest(kinematics.penetration)
     if mechanism.driver is not None:
         torque = -lam[mechanism.constraint_slices[mechanism.driver.name]][0]
     else:

@@ -204,7 +204,10 @@ def recommended_solver(mechanism) -> SolverConfig:
     which are implicit in that state only; without internal friction states Tsit5 is the fastest.
     The measurements behind the choice: docs/solvers.md, "Choosing the method".
     """
-    stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
+    stiff = any(
+        joint.friction_law.num_states > 0
+        for joint in (*mechanism.clearance_joints, *mechanism.translational_clearance_joints)
+    )
     return PRESETS["imex" if stiff else "fast"]
 
 
@@ -242,12 +245,19 @@ def gradient_solver(mechanism) -> SolverConfig:
     Returns:
         A ``SolverConfig`` (static: build it once and reuse it).
     """
-    stiff = any(joint.friction_law.num_states > 0 for joint in mechanism.clearance_joints)
+    stiff = any(
+        joint.friction_law.num_states > 0
+        for joint in (*mechanism.clearance_joints, *mechanism.translational_clearance_joints)
+    )
     budget = dict(max_steps=GRADIENT_MAX_STEPS, checkpoints=GRADIENT_MAX_STEPS - 1)
     if stiff:
         return SolverConfig(method="tsit5", rtol=1e-12, atol=1e-15, dtmax=1e-6, **budget)
     # lawson-tsit5 needs impact-memory rows; ideal joints have none
-    method = "lawson-tsit5" if mechanism.clearance_joints else "tsit5"
+    method = (
+        "lawson-tsit5"
+        if mechanism.clearance_joints or mechanism.translational_clearance_joints
+        else "tsit5"
+    )
     return SolverConfig(method=method, rtol=1e-12, atol=1e-15, **budget)
 
 
