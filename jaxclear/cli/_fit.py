@@ -42,10 +42,13 @@ per-joint clearance tables, journal_body, start) come from the same config file 
 (--revolutions).
 
 Each signal is weighted by its noise level: estimated from the data (third differences, robust to
-impacts) or given with --noise. The fit scans the bounds (vectorised solves), then refines by
-Levenberg-Marquardt with forward-mode derivatives through the solve over growing windows of the
-record, and stops extending the window where the model no longer follows the data (a chaotic
-impact sequence): fit.json says up to which time the data were fitted. Uncertainties are one
+impacts) or given with --noise. The fit starts on the shortest window that carries the
+parameters (up to the first contacts of a first simulation, and of the data), scans the bounds
+there (vectorised solves) with a design refined until its spacing resolves the width of the loss's
+basins that it measures, runs Levenberg-Marquardt from the best few scanned points, and continues
+from the best over windows twice as long each, with forward-mode derivatives through the solve. It
+stops extending the window where the model no longer follows the data (a chaotic impact sequence):
+fit.json says up to which time the data were fitted. Uncertainties are one
 standard deviation (1 sigma): Gauss-Newton (scaled by the reduced chi-square when above 1) plus the
 estimate's drift between the last two windows.
 
@@ -72,8 +75,10 @@ fit.csv (t and, per signal, <name>_measured, <name>_fitted, <name>_residual), fi
 and fitted signals, estimates +- 1 sigma), loss.png (loss per iteration).
 
 exit codes: 0 success, 1 a solve failed or the results could not be written, 2 bad input (bad
-data, unknown parameter or column, ...), 3 the fit did not reach the noise level (files written,
-fit.json says why).
+data, unknown parameter or column, ...), 3 not a fit: the loss did not reach the noise level, an
+estimate has no finite standard deviation, or no window told the scanned points apart (files
+written, fit.json says "success": false and the reason, the printed estimates are marked
+unreliable).
 
 config file (TOML; every key optional; command-line options override it):
 {config_reference()}
@@ -125,7 +130,24 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         type=int,
         default=None,
         metavar="N",
-        help="points of the global scan (default 16 per parameter; 0: start from INITIAL)",
+        help="points of the global scan's first design (default 16 per parameter; 0: start from "
+        "INITIAL)",
+    )
+    fit.add_argument(
+        "--max-scan-points",
+        type=int,
+        default=None,
+        metavar="N",
+        help="most points the scan refines its design to, following the basin width it measures "
+        f"(default {DEFAULTS.scan_budget(1)}; the first design's size: no refinement)",
+    )
+    fit.add_argument(
+        "--starts",
+        type=int,
+        default=DEFAULTS.starts,
+        metavar="N",
+        help="Levenberg-Marquardt runs on the first window, from the best scanned points of "
+        f"distinct basins (default {DEFAULTS.starts})",
     )
     fit.add_argument(
         "--max-iterations",
@@ -138,8 +160,8 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         "--horizons",
         default=None,
         metavar="F,...",
-        help="growing windows as fractions of the record, ending with 1 "
-        f"(default {','.join(f'{h:g}' for h in DEFAULTS.horizons)})",
+        help="growing windows as fractions of the record, ending with 1 (default: the first up "
+        "to the first contacts, then twice as long each)",
     )
     add_setting_arguments(fit)
     fit.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -203,7 +225,7 @@ def _noise(texts: list[str]) -> dict[str, float]:
     return out
 
 
-def _horizons(text: str | None) -> tuple[float, ...]:
+def _horizons(text: str | None) -> tuple[float, ...] | None:
     if text is None:
         return DEFAULTS.horizons
     try:
@@ -250,10 +272,16 @@ def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         raise UsageError(f"--scan-points {args.scan_points}: give 0 or more")
     if args.max_iterations < 1:
         raise UsageError(f"--max-iterations {args.max_iterations}: give 1 or more")
+    if args.max_scan_points is not None and args.max_scan_points < 0:
+        raise UsageError(f"--max-scan-points {args.max_scan_points}: give 0 or more")
+    if args.starts < 1:
+        raise UsageError(f"--starts {args.starts}: give 1 or more")
     try:
         fit_settings = FitSettings(
             horizons=_horizons(args.horizons),
             scan_points=args.scan_points,
+            max_scan_points=args.max_scan_points,
+            starts=args.starts,
             max_iterations=args.max_iterations,
         )
     except jaxclear.ModelError as e:

@@ -11,8 +11,9 @@ import numpy as np
 from .._core._errors import ModelError
 from ..solve._solver import SolverConfig
 
-DEFAULT_HORIZONS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1.0)
-"""Fractions of the record fitted in turn (module doc, "growing windows")."""
+DEFAULT_HORIZONS = None
+"""The growing windows by default: chosen from the data and a first simulation (the first up to
+the first contacts, then twice as long each: ``_global_search``), not fixed fractions."""
 
 INFORMATIVE_SPREAD = 1.0
 """Two scanned points whose losses differ by at most this (1 = the noise level) tie on a window."""
@@ -34,7 +35,7 @@ NOISE_LEVEL_LOSS = 2.0
 standard deviation √(2/N): for N = 100 residuals a loss of 2 is 7 standard deviations out); noise
 levels estimated from the data (``Measurements``, third differences) are within about 15 % of the
 truth (notebook 06), which moves the loss by a factor of up to 1.15² ≈ 1.3; and the smooth contact
-model follows sharp impacts to within the noise (docs/identification.md, losses 0.7–1.1). A loss
+model follows sharp impacts to within the noise (docs/identification.md, losses 0.7–1.3). A loss
 above 2 means residuals 1.4 times the noise on average: the model does not follow the data. Equal
 to ``LOSS_GROWTH``, the loss growth at which a window is dropped."""
 
@@ -43,7 +44,17 @@ NOISE_LEVEL_Z = 4.753
 by a fit at the noise level once in a million."""
 
 DEFAULT_SCAN_POINTS = 16
-"""Points of the global scan per fitted parameter (one solve each, vectorised in chunks)."""
+"""Points of the global scan's first design per fitted parameter (one solve each, vectorised in
+chunks); the design is then refined to the basin width it measures (``DEFAULT_MAX_SCAN_POINTS``)."""
+
+DEFAULT_MAX_SCAN_POINTS = 256
+"""Most points the global scan may refine its design to, whatever the number of parameters (one
+solve each over the first window). For one parameter the grid goes 16, 46, 136 points (the next,
+406, is past it): steps of 2.1 % for a clearance scanned over a factor 16, against basins measured
+at about ±2 % (200 and 5000 rpm, docs/identification.md). For several, up to 256 Halton points."""
+
+DEFAULT_STARTS = 3
+"""Levenberg–Marquardt runs on the first window, from the best scanned points of distinct basins."""
 
 SCAN_CHUNK = 8
 """Members per vectorised scan solve (bounds memory; one compilation per chunk size)."""
@@ -107,10 +118,15 @@ class FitSettings(eqx.Module):
     """How ``identify`` fits: the growing windows, the global scan and the optimiser (all static).
 
     Attributes:
-        horizons: increasing fractions of the record in (0, 1], the last 1: the growing windows
-            (module doc).
-        scan_points: global-scan size; ``None``: ``DEFAULT_SCAN_POINTS`` per parameter; 0 (or 1):
-            no scan, the refinement starts from the initial values.
+        horizons: increasing fractions of the record in (0, 1], the last 1: the growing windows;
+            ``None`` (default): chosen from the data and a first simulation, the first up to the
+            first contacts, then twice as long each.
+        scan_points: size of the global scan's first design; ``None``: ``DEFAULT_SCAN_POINTS``
+            per parameter; 0 (or 1): no scan, the refinement starts from the initial values.
+        max_scan_points: most points the scan refines its design to, following the basin width it
+            measures; ``None``: ``DEFAULT_MAX_SCAN_POINTS`` (never fewer than the first design).
+        starts: Levenberg–Marquardt runs on the first window, from the best scanned points of
+            distinct basins (≥ 1).
         max_iterations: Levenberg–Marquardt iterations per window (≥ 1).
         tolerance: relative decrease of the loss (and relative step) below which a window's
             refinement has converged (≥ 0).
@@ -119,16 +135,18 @@ class FitSettings(eqx.Module):
         ModelError: a field out of its range, naming the field and what is allowed.
     """
 
-    horizons: tuple[float, ...] = eqx.field(
+    horizons: tuple[float, ...] | None = eqx.field(
         static=True, default=DEFAULT_HORIZONS, converter=_fractions
     )
     scan_points: int | None = eqx.field(static=True, default=None, converter=_whole)
+    max_scan_points: int | None = eqx.field(static=True, default=None, converter=_whole)
+    starts: int = eqx.field(static=True, default=DEFAULT_STARTS, converter=_whole)
     max_iterations: int = eqx.field(static=True, default=DEFAULT_MAX_ITERATIONS, converter=_whole)
     tolerance: float = eqx.field(static=True, default=DEFAULT_TOLERANCE, converter=_number)
 
     def __check_init__(self):
         horizons = self.horizons
-        if (
+        if horizons is not None and (
             not isinstance(horizons, tuple)
             or not horizons
             or not all(isinstance(h, float) for h in horizons)
@@ -136,10 +154,12 @@ class FitSettings(eqx.Module):
             or horizons[-1] != 1.0
         ):
             raise ModelError(
-                f"horizons must be increasing fractions of the record in (0, 1] ending with 1, "
-                f"e.g. (0.25, 0.5, 1.0); got {horizons!r}."
+                f"horizons must be None (from the first contacts) or increasing fractions of the "
+                f"record in (0, 1] ending with 1, e.g. (0.25, 0.5, 1.0); got {horizons!r}."
             )
-        if any(b <= a for a, b in zip(horizons, horizons[1:], strict=False)):
+        if horizons is not None and any(
+            b <= a for a, b in zip(horizons, horizons[1:], strict=False)
+        ):
             raise ModelError(
                 f"horizons must be increasing (each window longer than the one before), got "
                 f"{horizons!r}."
@@ -149,6 +169,18 @@ class FitSettings(eqx.Module):
             raise ModelError(
                 f"scan_points must be None ({DEFAULT_SCAN_POINTS} per parameter), 0 (no scan: "
                 f"start from the initial values) or a positive whole number, got {n!r}."
+            )
+        n = self.max_scan_points
+        if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 0):
+            raise ModelError(
+                f"max_scan_points must be None ({DEFAULT_MAX_SCAN_POINTS}) or a whole number of at "
+                f"least 0 (most points the scan refines its design to), got {n!r}."
+            )
+        n = self.starts
+        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+            raise ModelError(
+                f"starts must be a whole number of at least 1 (Levenberg–Marquardt runs from the "
+                f"best scanned points), got {n!r}."
             )
         n = self.max_iterations
         if not isinstance(n, int) or isinstance(n, bool) or n < 1:
@@ -166,6 +198,11 @@ class FitSettings(eqx.Module):
     def scan_count(self, parameters: int) -> int:
         """Points of the global scan for ``parameters`` fitted parameters (≤ 1: no scan)."""
         return DEFAULT_SCAN_POINTS * parameters if self.scan_points is None else self.scan_points
+
+    def scan_budget(self, parameters: int) -> int:
+        """Most points the scan may refine to (at least its first design)."""
+        most = DEFAULT_MAX_SCAN_POINTS if self.max_scan_points is None else self.max_scan_points
+        return max(most, self.scan_count(parameters))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,7 +228,7 @@ class Estimate:
 UNCERTAINTY = (
     "std is one standard deviation (1σ) of each estimate: the Gauss–Newton covariance over the "
     "windows used, scaled by the reduced chi-square when above 1, plus the drift of the estimate "
-    "between the last two windows"
+    "between the last two windows, plus for a clearance the contact model's smoothing width"
 )
 """What ``std`` is, as fit.json says it (``IdentificationResult.summary``)."""
 
@@ -220,7 +257,10 @@ class IdentificationResult:
             reason: why not, with what to try (empty on success). A result that is not a success
             is no estimate of the parameters: its ``std`` are not reliable either.
         time: wall time of the fit, s (compilation included).
-        scan: ``{"values": (K, p), "loss": (K,)}`` of the global scan (empty if none).
+        scan: the global scan (empty if none): ``values`` (K, p), their capped ``loss`` (K,)
+            (``_global_search.scan_loss``), the design's ``spacing`` and the ``basin_width`` it
+            measured (unit coordinates; None if not measured), the scanned window's
+            ``window_end`` (s).
         t: data times, s. measured, fitted: ``{signal: (N,)}`` at ``t``.
         solver: the ``SolverConfig`` used.
     """
@@ -269,10 +309,17 @@ class IdentificationResult:
             "status": self.status,
             "time_s": self.time,
             "history": self.history,
-            "scan": {k: np.asarray(v).tolist() for k, v in self.scan.items()},
+            "scan": {k: _json_ready(v) for k, v in self.scan.items()},
             "solver": {
                 "method": self.solver.method,
                 "rtol": self.solver.rtol,
                 "atol": self.solver.atol,
             },
         }
+
+
+def _json_ready(value: Any) -> Any:
+    """An array as nested lists; a float that is not finite (a basin width not measured) as None."""
+    if np.ndim(value) == 0 and isinstance(value, float | np.floating) and not math.isfinite(value):
+        return None
+    return np.asarray(value).tolist()

@@ -122,6 +122,9 @@ def test_identification_data_files(name):
     np.testing.assert_allclose(noisy["t"], time_grid(spec["t_end"], spec["dt"]), atol=1e-15)
     np.testing.assert_array_equal(noisy["t"], clean["t"])
     assert meta["true_parameters"]["clearance"] == spec["clearance"]
+    for key in ("restitution", "friction_coefficient"):  # held-out sets: not the common values
+        if key in spec:
+            assert meta["true_parameters"][key] == spec[key]
     assert meta["journal_body"] == spec["journal_body"]
     sigma = meta["noise"]["sigma"]
     for col, value in noise_sigma(clean).items():  # the documented rule, from the clean file
@@ -134,7 +137,10 @@ def test_identification_data_files(name):
         assert (DATA_DIR / f"{name}{suffix}").stat().st_size < 100_000
 
 
-@pytest.mark.parametrize("name, t_end", [("ident_5000rpm_B", 6e-4), ("ident_200rpm_B", 6e-3)])
+@pytest.mark.parametrize(
+    "name, t_end",
+    [("ident_5000rpm_B", 6e-4), ("ident_200rpm_B", 6e-3), ("heldout_1000rpm_A3", 3e-3)],
+)
 def test_identification_data_reproduced_by_the_reference(name, t_end):
     """The start of each set (through its first impact) recomputed by the current reference."""
     clean, meta = load(name, clean=True)
