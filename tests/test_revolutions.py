@@ -132,3 +132,26 @@ def test_bad_arguments_name_the_parameter():
 def test_join_refuses_nothing():
     with pytest.raises(ValueError, match="at least one"):
         join_trajectories([])
+
+
+def test_companions_perturbed_at_rounding_level_leave_a_periodic_run_steady():
+    """``companions``: K solves in one batch from the initial state perturbed by ~1e-12 relative;
+    the ideal (periodic) mechanism's medians do not move, so nothing is marked sensitive."""
+    run = simulate_revolutions(slider_crank(), 2, points_per_revolution=90, skip=0, companions=2)
+    batch = run.companion_revolutions
+    assert len(batch) == 2 and np.asarray(batch[0].t_final).shape == (2,)
+    start = np.asarray(batch[0].q[:, 0])  # (K, n): the companions' first saved instants
+    nominal = np.asarray(run.revolutions[0].q[0])
+    relative = np.abs(start - nominal) / np.maximum(np.abs(nominal), 1e-300)
+    assert 1e-14 < relative.max() < 1e-10  # perturbed, at the rounding level
+    spread = run.spread()
+    assert spread and not any(v["sensitive"] for v in spread.values())
+    assert spread["crank_torque_max"]["relative_spread"] < 1e-6
+    assert len(spread["crank_torque_max"]["companions"]) == 2
+
+
+def test_negative_spread_is_refused(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["run", "--spread", "-1", "--out", str(tmp_path / "o"), "--quiet"])
+    assert exc.value.code == 2
+    assert "--spread" in capsys.readouterr().err

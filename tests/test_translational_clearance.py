@@ -5,6 +5,7 @@ Compiled solves are shared per module: one slider–crank (clearance, stiffness 
 so the c -> 0 sequence reuses one program) and one free slider resting in its guide.
 """
 
+import json
 from pathlib import Path
 
 import equinox as eqx
@@ -311,18 +312,99 @@ def test_bad_input_names_the_parameter():
     assert mech.translational_clearance_joints[0].clearance == 1e-3
 
 
+# --- parameters by name (montecarlo, sweep, --fit) ---------------------------------------------------------
+def test_parameter_names_round_trip():
+    """The guide's clearance, the slider's size and the corner laws' values are named parameters:
+    ``with_parameters`` sets the joint's leaves, ``get_parameter`` reads them back."""
+    mech = slider_crank(translational_clearance=1e-3, clearance_joints="B")
+    names = jaxclear.parameter_names(mech)
+    values = {
+        "slider_guide.clearance": 4e-4,
+        "slider_guide.half_length": 0.04,
+        "slider_guide.half_height": 0.02,
+        "slider_guide.stiffness": 3e10,
+        "slider_guide.restitution": 0.6,
+        "slider_guide.friction_coefficient": 0.05,
+        "slider_guide.penetration_width": 2e-7,
+        "B.clearance": 3e-4,  # the revolute joint's own, beside it
+    }
+    assert set(values) <= set(names)
+    new = jaxclear.with_parameters(mech, values)
+    for name, value in values.items():
+        assert float(jaxclear.get_parameter(new, name)) == pytest.approx(value)
+        assert float(jaxclear.get_parameter(mech, name)) != pytest.approx(value)
+    (joint,) = new.translational_clearance_joints
+    assert (float(joint.clearance), float(joint.half_length), float(joint.half_height)) == (
+        4e-4,
+        0.04,
+        0.02,
+    )
+    assert float(joint.contact_law.stiffness) == 3e10
+    info = jaxclear.parameter_info(mech, "slider_guide.clearance")
+    assert info.unit == "m" and info.domain[0] == 0.0
+    assert jaxclear.parameter_info(mech, "slider_guide.restitution").domain == (0.0, 1.0)
+    # a centre-of-mass shift keeps the slider rectangle where it is on the body
+    shifted = jaxclear.with_parameters(mech, {"slider_com_x": 0.01})
+    point = shifted.translational_clearance_joints[0].slider_point
+    np.testing.assert_allclose(point, np.asarray(joint.slider_point) - [0.01, 0.0])
+    # an ideal guide has no clearance to vary: the error says how to give it one
+    with pytest.raises(ModelError, match="ideal translational joint .* translational_clearance=c"):
+        jaxclear.get_parameter(slider_crank(), "slider_guide.clearance")
+
+
 # --- command line ----------------------------------------------------------------------------------------
 EXAMPLE = Path(jaxclear.__file__).parent / "model" / "slider_crank_translational_clearance.toml"
 
 
+def _config_with(tmp_path, table: str, drop: tuple[str, ...] = ()) -> Path:
+    """The example config with the lines setting the keys ``drop`` removed and ``table`` added to
+    its ``[clearance.slider_guide]``."""
+    lines = [
+        line
+        for line in EXAMPLE.read_text().splitlines()
+        if not any(line.startswith(f"{key} =") for key in drop)
+    ]
+    text = "\n".join(lines).replace(
+        "[clearance.slider_guide]", "[clearance.slider_guide]\n" + table
+    )
+    config = tmp_path / "config.toml"
+    config.write_text(text + "\n")
+    return config
+
+
+def _built(config: Path):
+    return build_mechanism(resolve_settings(build_parser().parse_args(["run", str(config)])))
+
+
 def test_example_config_builds_the_joint():
-    settings = resolve_settings(build_parser().parse_args(["run", str(EXAMPLE)]))
-    mech = build_mechanism(settings)
-    (joint,) = mech.translational_clearance_joints
+    (joint,) = _built(EXAMPLE).translational_clearance_joints
     assert float(joint.clearance) == 1e-3 and float(joint.half_length) == A
+    assert float(joint.half_height) == B and float(joint.contact_law.stiffness) == 1e10
     assert isinstance(joint.contact_law, Flores) and float(joint.contact_law.restitution) == 0.4
     assert isinstance(joint.friction_law, Coulomb)
-    assert "slider_guide" not in [j.name for j in mech.joints]
+    assert "slider_guide" not in [j.name for j in _built(EXAMPLE).joints]
+
+
+def test_per_joint_keys_reach_the_joint(tmp_path):
+    """half_length, half_height and contact_stiffness of [clearance.<joint>] set a, b and K; with
+    neither contact nor restitution given the corners take the Flores law with restitution 0.4,
+    not the pins' defaults (hybrid, 0.9)."""
+    keys = ("half_length", "half_height", "contact_stiffness", "contact", "restitution")
+    table = "half_length = 0.04\nhalf_height = 0.02\ncontact_stiffness = 2e10"
+    (joint,) = _built(_config_with(tmp_path, table, drop=keys)).translational_clearance_joints
+    assert (float(joint.half_length), float(joint.half_height)) == (0.04, 0.02)
+    assert isinstance(joint.contact_law, Flores)
+    assert float(joint.contact_law.stiffness) == 2e10
+    assert float(joint.contact_law.restitution) == 0.4
+    # a restitution given in the shared [clearance] table applies to the corners too
+    shared = _config_with(tmp_path, "", drop=keys)
+    shared.write_text(
+        shared.read_text().replace(
+            'joints = "slider_guide"', 'joints = "slider_guide"\nrestitution = 0.7'
+        )
+    )
+    (joint,) = _built(shared).translational_clearance_joints
+    assert float(joint.contact_law.restitution) == 0.7
 
 
 @pytest.mark.parametrize(
@@ -332,22 +414,72 @@ def test_example_config_builds_the_joint():
         ('journal_body = "rod"', "revolute clearance joints only"),
         ("clearance = -1e-3", "clearance"),
         ("", "given its guide's clearance in a table"),
+        ("half_height = -1", "[clearance.slider_guide] half_height in"),
+        ("half_length = 0", "[clearance.slider_guide] half_length in"),
+        ("contact_stiffness = -1e10", "[clearance.slider_guide] contact_stiffness in"),
+        ("half_length = true", "half_length in"),
     ],
 )
 def test_bad_config_exits_2(tmp_path, capsys, table, message):
     """One-line errors, exit 2: a law that needs a pin, a revolute-only key, a negative clearance,
-    a translational joint without its own table's clearance."""
-    text = EXAMPLE.read_text().replace('contact = "flores"', "")
-    if "clearance" in table or not table:  # the table's clearance replaced, or left out
-        text = text.replace("clearance = 1.0e-3", "")
+    a translational joint without its own table's clearance, a slider size or corner stiffness
+    that is not a positive number."""
+    key = table.split(" = ")[0] if table else "clearance"
+    config = _config_with(tmp_path, table, drop=(key, "contact"))
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["run", str(config), "--out", str(tmp_path / "out")])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+    if "half" in table or "stiffness" in table:
+        assert "must be positive" in err or "must be a number" in err
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        # slider sizes and the corner stiffness belong to a translational joint's own table
+        ("[clearance]\nhalf_length = 0.04", "belongs in a per-joint table"),
+        (
+            '[clearance]\njoints = "B"\n[clearance.B]\ncontact_stiffness = 1e10',
+            "[clearance.B] contact_stiffness: applies to translational clearance joints only",
+        ),
+    ],
+)
+def test_translational_keys_elsewhere_exit_2(tmp_path, capsys, text, message):
     config = tmp_path / "bad.toml"
-    config.write_text(
-        text.replace("[clearance.slider_guide]", "[clearance.slider_guide]\n" + table)
-    )
+    config.write_text(text + "\n")
     with pytest.raises(SystemExit) as exit_:
         cli.main(["run", str(config), "--out", str(tmp_path / "out")])
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_example_runs_from_the_command_line(tmp_path, capsys):
+    """``jaxclear run`` on the example: the header names the translational joint with its values,
+    the printed figures its peak corner force, and run.json's corner-pair mode shares are those of the results' corner-pair mode columns."""
+    out = tmp_path / "out"
+    argv = ["run", str(EXAMPLE), "--revolutions", "0.25", "--skip-revolutions", "0"]
+    assert cli.main([*argv, "--no-plots", "--no-progress", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    header = printed.splitlines()[0]
+    assert "ideal joints" not in header and "slider_guide peak normal force" in printed
+    assert (
+        "translational clearance joint slider_guide (c = 1 mm, slider 100 x 50 mm, flores corner "
+        "contact K = 1e+10, coulomb friction)" in header
+    )
+    info = json.loads((out / "run.json").read_text())
+    shares = info["corner_pair_mode_shares"]
+    assert info["status"] == "complete" and sum(shares.values()) == pytest.approx(1.0)
+    npz = np.load(out / "results.npz")
+    pairs = np.stack([npz["slider_guide_mode_upper"], npz["slider_guide_mode_lower"]], axis=1)
+    names = {0.0: "free", 1.0: "impact", 2.0: "continuous"}
+    for key, share in shares.items():
+        upper, lower = (part.split(":")[1] for part in key.split(" "))
+        count = sum((names[u], names[v]) == (upper, lower) for u, v in pairs)
+        assert share == pytest.approx(count / len(pairs))
+    # the slider leaves the centre of the guide and lands on a face within the quarter revolution
+    assert shares.get("slider_guide.upper:free slider_guide.lower:free", 0.0) < 1.0
 
 
 # --- (iv) the unactuated Flores–Leine–Glocker slider–crank ----------------------------------------------

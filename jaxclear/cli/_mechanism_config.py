@@ -50,6 +50,7 @@ from ..contact import (
 from ..friction import FRICTION_LAWS, friction_law_from_name
 from ..mechanisms import FLORES_LEINE_GLOCKER_SLIDER
 from ..model._translational_clearance import (
+    DEFAULT_CORNER_RESTITUTION,
     DEFAULT_CORNER_STIFFNESS,
     TranslationalClearanceJoint,
 )
@@ -282,6 +283,13 @@ def joint_options(settings: Settings, joint: str) -> dict:
             return f"[clearance.{joint}] {key}"
         return settings.source("clearance", key)
 
+    for key in TRANSLATIONAL_KEYS:
+        if override.get(key) is not None:
+            raise UsageError(
+                f"{where(key)}: applies to translational clearance joints only; {joint!r} is a "
+                "revolute joint (its contact stiffness follows from bearing_radius, pin_length, "
+                "young_modulus and poisson_ratio)"
+            )
     if c["contact"] not in CONTACT_LAWS:
         raise UsageError(
             f"{where('contact')}: contact law {c['contact']!r} is unknown; choose one of {', '.join(CONTACT_LAWS)}"
@@ -437,7 +445,11 @@ def translational_options(settings: Settings, joint: str) -> dict:
     fields = {f.name for f in dataclasses.fields(CONTACT_LAWS[contact])}
     contact_params: dict[str, Any] = {"stiffness": sizes["contact_stiffness"]}
     if "restitution" in fields:
-        contact_params["restitution"] = c["restitution"]
+        given = (
+            "restitution" in override or settings.source("clearance", "restitution") != "default"
+        )
+        # the shared default restitution describes pins in holes, as the shared contact law does
+        contact_params["restitution"] = c["restitution"] if given else DEFAULT_CORNER_RESTITUTION
     try:
         contact_law = contact_law_from_name(contact, **contact_params)
         friction_law = friction_law_from_name(c["friction"], **_friction_params(c, where, joint))

@@ -15,6 +15,8 @@ import numpy as np
 import jaxclear
 
 from .._core._progress import progress_bar
+from ..contact import CONTACT_LAWS
+from ..friction import FRICTION_LAWS
 from ..internal import EVENTS_PER_REVOLUTION
 from ..io import (
     RUN_FORMAT,
@@ -31,7 +33,7 @@ from ..io import (
 from ..mechanisms import is_slider_crank
 from ..solve import finite_rows, ideal_mechanism, wall_start, window
 from ..studies import simulate_revolutions
-from ..studies._revolutions import segment_points
+from ..studies._revolutions import COMPANION_PERTURBATION, SENSITIVE_SPREAD, segment_points
 from ._common import (
     PROG,
     RunError,
@@ -122,6 +124,16 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
     )
     add_setting_arguments(run)
     run.add_argument(
+        "--spread",
+        type=int,
+        default=0,
+        metavar="K",
+        help="also solve K companions, started from the initial state perturbed at the rounding "
+        "level (1e-12 relative), in one vectorised batch; run.json's spread says how far each "
+        "figure's median over the kept revolutions moves, and marks the ones that move more than "
+        "2 %% as sensitive (default 0: none; docs/outputs.md)",
+    )
+    run.add_argument(
         "--no-progress",
         action="store_true",
         help="no progress bar (it is shown only on a terminal anyway)",
@@ -155,6 +167,7 @@ def timed_revolutions(
     solver,
     progress: bool,
     contact_events: int = 0,
+    companions: int = 0,
 ):
     """Simulate revolution by revolution (``jaxclear.studies.simulate_revolutions``), timing
     compilation and the run separately.
@@ -191,20 +204,37 @@ def timed_revolutions(
             solver=solver,
             contact_events=contact_events,
             on_revolution=lambda k, traj: bar.update(1),
+            companions=companions,
         )
     return result, compile_time, time.perf_counter() - start
 
 
-def _joints_text(settings: Settings, names: list[str]) -> str:
-    if not names:
+def _joints_text(settings: Settings, names: list[str], sliders=()) -> str:
+    """The header's joints: the revolute clearance joints ``names`` (shared values) and the
+    translational clearance joints ``sliders`` (their own values, docs/model.md §2c)."""
+    if not names and not sliders:
         return "ideal joints"
-    c = settings.config["clearance"]
-    per_joint = [j for j in names if j in settings.joint_tables]
-    extra = f", per-joint settings at {','.join(per_joint)}" if per_joint else ""
-    return (
-        f"clearance joints {','.join(names)} (c = {c['clearance'] * 1e3:g} mm, {c['contact']} contact, "
-        f"{'no' if c['friction'] == 'none' else c['friction']} friction{extra})"
-    )
+    parts = []
+    if names:
+        c = settings.config["clearance"]
+        per_joint = [j for j in names if j in settings.joint_tables]
+        extra = f", per-joint settings at {','.join(per_joint)}" if per_joint else ""
+        parts.append(
+            f"clearance joints {','.join(names)} (c = {c['clearance'] * 1e3:g} mm, {c['contact']} contact, "
+            f"{'no' if c['friction'] == 'none' else c['friction']} friction{extra})"
+        )
+    for j in sliders:
+        law, friction = (
+            next((k for k, v in laws.items() if type(x) is v), type(x).__name__)
+            for laws, x in ((CONTACT_LAWS, j.contact_law), (FRICTION_LAWS, j.friction_law))
+        )
+        parts.append(
+            f"translational clearance joint {j.name} (c = {float(j.clearance) * 1e3:g} mm, "
+            f"slider {2e3 * float(j.half_length):g} x {2e3 * float(j.half_height):g} mm, {law} corner "
+            f"contact K = {float(j.contact_law.stiffness):g}, "
+            f"{'no' if friction == 'none' else friction} friction)"
+        )
+    return ", ".join(parts)
 
 
 def _summary_line(run) -> str:
@@ -221,7 +251,7 @@ def _summary_line(run) -> str:
         names += [(f"{body}_torque_rms", f"{body} torque rms", "N m")]
     names += [
         (f"{j.name}_peak_normal_force", f"{j.name} peak normal force", "N")
-        for j in mechanism.clearance_joints
+        for j in (*mechanism.clearance_joints, *mechanism.translational_clearance_joints)
     ]
     for key, label, unit in names:
         if key in summary:
@@ -229,6 +259,22 @@ def _summary_line(run) -> str:
             parts.append(f"{label} {v['median']:.4g} {unit} ({v['min']:.4g} .. {v['max']:.4g})")
     head = f"revolutions {kept[0]}-{kept[-1]} ({len(kept)}): {run.verdict.describe()}"
     return f"{head}\nmedian (min .. max) per revolution: " + "; ".join(parts)
+
+
+def _spread_line(run, companions: int) -> str:
+    """Which headline figures move under a rounding-level perturbation (``--spread``)."""
+    spread = run.spread()
+    moved = [f"{k} {v['relative_spread']:.0%}" for k, v in spread.items() if v["sensitive"]]
+    steady = [k for k, v in spread.items() if not v["sensitive"]]
+    head = f"spread over {companions} companions (rounding-level start): "
+    if not moved:
+        return head + f"no median moves more than {SENSITIVE_SPREAD:.0%}"
+    return (
+        head
+        + f"sensitive (median moves > {SENSITIVE_SPREAD:.0%}): "
+        + ", ".join(moved)
+        + f"; steady: {', '.join(steady) or 'none'}"
+    )
 
 
 def _figures(traj, statistics: dict) -> str:
@@ -242,7 +288,8 @@ def _figures(traj, statistics: dict) -> str:
     if driver is not None:
         low, high, rms = (statistics[f"{driver.body}_torque_{k}"] for k in ("min", "max", "rms"))
         parts.append(f"{driver.body} torque {low:.6g} .. {high:.6g} N m (rms {rms:.6g})")
-    for name in clearance_joint_names(traj):
+    sliders = [j.name for j in traj.mechanism.translational_clearance_joints]  # largest corner
+    for name in clearance_joint_names(traj) + sliders:
         parts.append(
             f"{name} peak normal force {statistics[f'{name}_peak_normal_force']:.6g} N, "
             f"peak penetration {statistics[f'{name}_peak_penetration'] * 1e6:.4g} um"
@@ -272,6 +319,8 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
+    if args.spread < 0:
+        raise UsageError(f"--spread {args.spread}: give 0 (no companions) or more")
     fast_compile = apply_fast_compile(
         config["solver"]["fast_compile"]
     )  # before JAX's backend starts
@@ -305,14 +354,20 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     rpm, revs = config["mechanism"]["rpm"], config["simulation"]["revolutions"]
     skip = config["simulation"]["skip_revolutions"]
     say(
-        f"jaxclear {jaxclear.__version__}: {settings.mechanism}, {_joints_text(settings, names)}, {rpm:g} rpm, "
+        f"jaxclear {jaxclear.__version__}: {settings.mechanism}, "
+        f"{_joints_text(settings, names, mechanism.translational_clearance_joints)}, {rpm:g} rpm, "
         f"{revs:g} rev ({t1:.6g} s, {num_points} points; plots and statistics from revolution {skip:g}), "
         f"{start} start, solver {config['solver']['method']} ({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
     )
     say("compiling (one-off) and simulating ...", flush=True)
     try:
         revolution_run, compile_time, run_time = timed_revolutions(
-            mechanism, settings, solver, progress, event_capacity(settings) if names else 0
+            mechanism,
+            settings,
+            solver,
+            progress,
+            event_capacity(settings) if names else 0,
+            companions=args.spread,
         )
         traj = revolution_run.trajectory
     except jaxclear.AssemblyError as e:
@@ -339,6 +394,13 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         summary=revolution_run.summary(),
         revolutions=rows,
     )
+    if args.spread:
+        info["spread"] = {
+            "companions": args.spread,
+            "perturbation": f"initial state x (1 + {COMPANION_PERTURBATION:g} xi), xi standard normal",
+            "threshold": SENSITIVE_SPREAD,
+            "statistics": revolution_run.spread(),
+        }
     try:
         paths, files = write_run_outputs(
             traj, staged[0], info, statistics, ideal, t1, num_points, t_keep, fraction,
@@ -354,6 +416,8 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         f"compile {compile_time:.2f} s, run {run_time:.3f} s, {stats['num_steps']} steps ({stats['num_rejected_steps']} rejected)"
     )
     say(_summary_line(revolution_run))
+    if args.spread:
+        say(_spread_line(revolution_run, args.spread))
     say(
         f"largest over the kept revolutions (from revolution {skip:g}): {_figures(kept, statistics)}"
     )
@@ -484,6 +548,8 @@ def write_run_outputs(
 
             files.append(save_mode_timeline(traj, stage, events=events, start=t_keep).name)
     modes.pop("events", None)
+    if traj.mechanism.translational_clearance_joints:
+        modes["corner_pair_mode_shares"] = _corner_pair_shares(kept, fraction, period)
     if revolution_rows:
         files.append(write_revolutions_csv(stage / REVOLUTIONS_CSV, revolution_rows).name)
     info.update(statistics=statistics, **modes, files=files)
@@ -517,6 +583,24 @@ def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) ->
         "contact_mode_rule": rule,
         "events": events,
     }
+
+
+def _corner_pair_shares(kept, fraction: float, period: float) -> dict:
+    """run.json's ``corner_pair_mode_shares``: time share of each combination of the corner pairs'
+    contact modes of the translational clearance joints (``<J>.upper``: the upper front and rear
+    corners against the upper guide face, ``<J>.lower`` likewise; a pair is in contact when one of
+    its corners is), over the kept saved instants, as the columns ``<J>_mode_upper`` and
+    ``<J>_mode_lower`` label them (docs/model.md §2c)."""
+    from ..analysis import combination_shares, contact_modes
+
+    modes = {}
+    for joint in kept.mechanism.translational_clearance_joints:
+        depth = np.asarray(kept.clearance[joint.name]["corner_penetration"], dtype=float)
+        for pair, corners in (("upper", slice(0, 2)), ("lower", slice(2, 4))):
+            modes[f"{joint.name}.{pair}"] = contact_modes(
+                kept.t, depth[:, corners].max(axis=1), fraction * period
+            )
+    return combination_shares(modes)
 
 
 def _failed(traj, solver, info: dict, staged: StagedOutput, fraction: float, say) -> int:

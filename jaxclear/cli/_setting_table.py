@@ -19,6 +19,10 @@ from typing import Any
 from .. import mechanisms as _mechanisms
 from ..contact import CONTACT_LAWS
 from ..friction import FRICTION_LAWS
+from ..model._translational_clearance import (
+    DEFAULT_CORNER_RESTITUTION,
+    DEFAULT_CORNER_STIFFNESS,
+)
 from ..solve import METHODS, PRESETS
 
 MECHANISMS = ("slider_crank", "four_bar", "custom")
@@ -549,6 +553,50 @@ SETTINGS: tuple[Setting, ...] = (
         "relaxation rate k_m of the impact-velocity memory",
         None,
         "positive",
+        per_joint=True,
+    ),
+    # per-joint keys of a translational clearance joint (docs/model.md §2c; `clearance` is the
+    # guide's clearance c, the guide half-width b + c)
+    Setting(
+        "clearance",
+        "half_length",
+        float,
+        None,
+        "m",
+        "translational clearance joints: slider half-length a (default "
+        f"{_mechanisms.FLORES_LEINE_GLOCKER_SLIDER['half_length']:g} m, the slider of Flores, "
+        "Leine & Glocker 2010)",
+        None,
+        "positive",
+        shared=False,
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "half_height",
+        float,
+        None,
+        "m",
+        "translational clearance joints: slider half-height b; the guide's half-width is b + "
+        f"clearance (default {_mechanisms.FLORES_LEINE_GLOCKER_SLIDER['half_height']:g} m)",
+        None,
+        "positive",
+        shared=False,
+        per_joint=True,
+    ),
+    Setting(
+        "clearance",
+        "contact_stiffness",
+        float,
+        None,
+        "N/m^n",
+        "translational clearance joints: stiffness K of the corner contact law K δ^n (a corner on "
+        f"a plane has no Hertz stiffness; default {DEFAULT_CORNER_STIFFNESS:g} N/m^1.5 [ours]); "
+        f"where the file gives none, their contact law is flores with restitution "
+        f"{DEFAULT_CORNER_RESTITUTION:g}",
+        None,
+        "positive",
+        shared=False,
         per_joint=True,
     ),
     Setting(

@@ -17,6 +17,10 @@ Names (``parameter_names(mechanism)`` lists those of a given mechanism):
   (``J.penetration_width``, ...) and, for a lubricated joint, of its ``Lubrication``
   (``J.viscosity``, ``J.transition_eccentricity``, ``J.transition_width``, and the bearing length
   as ``J.lubrication.length``, since ``J.length`` is the pin length);
+- per translational clearance joint ``J`` (docs/model.md §2c): ``J.clearance`` (the guide's
+  clearance c, m: its half-width is b + c), ``J.half_length`` (a), ``J.half_height`` (b, m), and
+  every scalar array field of its corner contact law (``J.stiffness``, ``J.restitution``, ...),
+  friction law and ``Smoothing``, named as for a revolute clearance joint;
 - per force element ``F``: its scalar fields (``F.stiffness``, ``F.damping``, ``F.free_length``,
   ``F.torque``);
 - ``baumgarte_alpha``, ``baumgarte_beta`` (1/s).
@@ -38,7 +42,7 @@ import jax.numpy as jnp
 from jaxtyping import Array, ArrayLike
 
 from .._core._errors import ModelError
-from ._joints import ConstantSpeedDriver, RevoluteJoint
+from ._joints import ConstantSpeedDriver, RevoluteJoint, TranslationalJoint
 from ._mechanism import Mechanism
 
 RPM_TO_RAD_PER_S = math.pi / 30.0
@@ -178,9 +182,9 @@ def _shift_centre_of_mass(mechanism: Mechanism, body: str, axis: int, value) -> 
     c, s = jnp.cos(phi), jnp.sin(phi)
     world = jnp.stack([c * shift[0] - s * shift[1], s * shift[0] + c * shift[1]])
     m = eqx.tree_at(lambda m: m.bodies[k].position, m, m.bodies[k].position.at[:2].add(world))
-    for group in ("joints", "clearance_joints", "forces"):
+    for group in ("joints", "clearance_joints", "translational_clearance_joints", "forces"):
         for j, element in enumerate(getattr(m, group)):
-            for end in ("i", "j", "bearing", "journal", ""):
+            for end in ("i", "j", "bearing", "journal", "slider", "guide", ""):
                 body_attr = (
                     f"body_{end}" if end in ("i", "j") else (f"{end}_body" if end else "body")
                 )
@@ -274,29 +278,69 @@ def _clearance_entries(mechanism: Mechanism) -> list[_Entry]:
                     ),
                 )
             )
-        taken = {e.info.name for e in entries}
         parts = ("contact_law", "friction_law", "smoothing")
         if joint.lubrication is not None:
             parts += ("lubrication",)
-        for part in parts:
-            for field in _scalar_fields(getattr(joint, part)):
-                name = f"{J}.{field}"
-                if name in taken:
-                    name = f"{J}.{part.split('_')[0]}.{field}"
-                taken.add(name)
-                entries.append(
-                    _Entry(
-                        _info(name, field, f"the {part.replace('_', ' ')} of {owner}"),
-                        lambda m, k=k, part=part, field=field: getattr(
-                            getattr(m.clearance_joints[k], part), field
-                        ),
-                        lambda m, v, k=k, part=part, field=field: eqx.tree_at(
-                            lambda m: getattr(getattr(m.clearance_joints[k], part), field),
-                            m,
-                            jnp.asarray(v, dtype=float),
-                        ),
-                    )
+        taken = {e.info.name for e in entries}
+        entries += _part_entries(joint, "clearance_joints", k, parts, owner, taken)
+    return entries
+
+
+def _part_entries(joint, group: str, k: int, parts, owner: str, taken: set) -> list[_Entry]:
+    """Entries ``<J>.<field>`` for every scalar array field of the ``parts`` (contact law, friction
+    law, smoothing, ...) of ``joint``, entry ``k`` of the mechanism's tuple ``group``; a name
+    already in ``taken`` becomes ``<J>.<part>.<field>`` (``J.lubrication.length``)."""
+    entries = []
+    for part in parts:
+        for field in _scalar_fields(getattr(joint, part)):
+            name = f"{joint.name}.{field}"
+            if name in taken:
+                name = f"{joint.name}.{part.split('_')[0]}.{field}"
+            taken.add(name)
+            entries.append(
+                _Entry(
+                    _info(name, field, f"the {part.replace('_', ' ')} of {owner}"),
+                    lambda m, part=part, field=field: getattr(
+                        getattr(getattr(m, group)[k], part), field
+                    ),
+                    lambda m, v, part=part, field=field: eqx.tree_at(
+                        lambda m: getattr(getattr(getattr(m, group)[k], part), field),
+                        m,
+                        jnp.asarray(v, dtype=float),
+                    ),
                 )
+            )
+    return entries
+
+
+def _translational_entries(mechanism: Mechanism) -> list[_Entry]:
+    """Entries of the translational clearance joints (docs/model.md §2c): per joint ``J``,
+    ``J.clearance`` (c, the guide's half-width being b + c), ``J.half_length`` (a),
+    ``J.half_height`` (b) and the scalar fields of its corner contact law (``J.stiffness``,
+    ``J.restitution``, ...), friction law and ``Smoothing``."""
+    group = "translational_clearance_joints"
+    entries = []
+    for k, joint in enumerate(mechanism.translational_clearance_joints):
+        owner = f"translational clearance joint {joint.name!r}"
+        for field, what in (
+            ("clearance", "guide clearance c (guide half-width b + c)"),
+            ("half_length", "slider half-length a"),
+            ("half_height", "slider half-height b (guide half-width b + c)"),
+        ):
+            entries.append(
+                _Entry(
+                    ParameterInfo(f"{joint.name}.{field}", "m", f"{what} of {owner}", POSITIVE),
+                    lambda m, k=k, field=field: getattr(getattr(m, group)[k], field),
+                    lambda m, v, k=k, field=field: eqx.tree_at(
+                        lambda m: getattr(getattr(m, group)[k], field),
+                        m,
+                        jnp.asarray(v, dtype=float),
+                    ),
+                )
+            )
+        taken = {e.info.name for e in entries}
+        parts = ("contact_law", "friction_law", "smoothing")
+        entries += _part_entries(joint, group, k, parts, owner, taken)
     return entries
 
 
@@ -345,7 +389,12 @@ def _other_entries(mechanism: Mechanism) -> list[_Entry]:
 def _entries(mechanism: Mechanism) -> dict[str, _Entry]:
     if not isinstance(mechanism, Mechanism):
         raise TypeError(f"expected a jaxclear Mechanism, got {type(mechanism).__name__}.")
-    entries = _body_entries(mechanism) + _clearance_entries(mechanism) + _other_entries(mechanism)
+    entries = (
+        _body_entries(mechanism)
+        + _clearance_entries(mechanism)
+        + _translational_entries(mechanism)
+        + _other_entries(mechanism)
+    )
     return {e.info.name: e for e in entries}
 
 
@@ -360,6 +409,14 @@ def _unknown(name: str, entries: Mapping[str, _Entry], mechanism: Mechanism) -> 
             f"no {field!r}; give it one first: clearance_joints={named!r} in "
             f"jaxclear.mechanisms.slider_crank or four_bar, --clearance-joints {named} on the "
             f'command line, or joints = "{named}" under [clearance] in the config file'
+        )
+    guides = {j.name for j in mechanism.joints if isinstance(j, TranslationalJoint)}
+    if field and joint in guides and f"{joint}.{field}" not in entries:
+        return ModelError(
+            f"{name!r}: joint {joint!r} is an ideal translational joint and has no clearance, so "
+            f"it has no {field!r}; give it one first: translational_clearance=c in "
+            f"jaxclear.mechanisms.slider_crank, or joints = {joint!r} under [clearance] and a table "
+            f"[clearance.{joint}] with clearance = c in the config file"
         )
     close = difflib.get_close_matches(name, list(entries), n=3)
     hint = f"did you mean {' or '.join(map(repr, close))}? " if close else ""

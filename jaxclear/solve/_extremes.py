@@ -103,12 +103,12 @@ class Extremes(eqx.Module):
     event_count: dict[str, Array]
 
     @property
-    def input_torque_rms(self) -> Float[Array, ""]:
+    def input_torque_rms(self) -> Float[Array, "*batch"]:
         """RMS of the driver torque over the window, N m (nan if the window is empty)."""
         return jnp.sqrt(self.input_torque_square_integral / self.duration)
 
     @property
-    def body_acceleration_rms(self) -> Float[Array, " b"]:
+    def body_acceleration_rms(self) -> Float[Array, "*batch b"]:
         """RMS of each body's centre-of-mass acceleration magnitude over the window, m/s²."""
         return jnp.sqrt(self.body_acceleration_square_integral / self.duration[..., None])
 

@@ -21,6 +21,8 @@ import dataclasses
 import math
 from collections.abc import Callable
 
+import equinox as eqx
+import jax.numpy as jnp
 import numpy as np
 
 from ..analysis._modes import contact_events, crank_period, shares_of_contacts
@@ -44,6 +46,19 @@ SETTLED_TOLERANCE = 1e-2
 ``return_coordinates``) count as the same point of a period-k orbit. Chosen from the distances
 measured in docs/outputs.md: a settled one-joint run returns within 1e-6–1e-5 (the solver's
 tolerance), an irregular run's closest returns stay above 1e-2."""
+
+COMPANION_PERTURBATION = 1e-12
+"""Relative size of the companions' initial-state perturbation (``companions``): each state
+component is multiplied by 1 + 1e-12·ξ, ξ standard normal. Rounding level: a Runge–Kutta step
+changes the state by a relative 1e-16 of rounding per operation and a revolution takes thousands
+of steps, so two runs of one design that differ only in their compiled program (output grid,
+tolerance, XLA flags) already differ by this much after the first steps; a statistic that moves
+under it is not a property of the design. (A tolerance perturbation would need another compiled
+program per companion: the solver settings are static.)"""
+
+SENSITIVE_SPREAD = 0.02
+"""A statistic whose median over the kept revolutions spreads over more than 2 % of the
+nominal's across the companions is marked sensitive (the issue's bar for a figure to quote)."""
 
 START_UP_REVOLUTIONS = 1
 """Revolutions left out of an irregular response's statistics: a centred journal's start-up impact
@@ -217,6 +232,8 @@ class RevolutionRun:
             the start-up (``skip``).
         period: crank period, s.
         statistics_start: start of the kept window, s.
+        companion_revolutions: with ``companions=K``, each revolution's batched ``Trajectory``
+            of the K companions (``spread``), else ``None``.
     """
 
     trajectory: Trajectory
@@ -226,6 +243,38 @@ class RevolutionRun:
     kept: tuple[int, ...]
     period: float
     statistics_start: float
+    companion_revolutions: "list[Trajectory] | None" = None
+
+    def spread(self, threshold: float = SENSITIVE_SPREAD) -> dict[str, dict]:
+        """Each statistic's median over the kept revolutions for the nominal run and for each
+        companion (``simulate_revolutions(companions=K)``): ``{name: {"nominal", "min", "max",
+        "relative_spread", "sensitive", "companions"}}``, the spread being (max − min)/|nominal|
+        over the nominal and the companions that succeeded. Empty without companions."""
+        if not self.companion_revolutions:
+            return {}
+        kept = list(self.kept)
+        nominal = self.summary()
+        per_revolution = [
+            {k: np.asarray(v, dtype=float) for k, v in statistics(traj).items()}
+            for traj in self.companion_revolutions
+        ]  # each {name: (K,)} for one revolution
+        ok = np.all(np.stack([np.asarray(t.succeeded) for t in self.companion_revolutions]), axis=0)
+        out = {}
+        for name, values in nominal.items():
+            table = np.stack([r[name] for r in per_revolution])[kept]  # (kept, K)
+            medians = np.median(table[:, ok], axis=0) if ok.any() else np.zeros(0)
+            everything = np.append(medians, values["median"])
+            scale = abs(values["median"]) or 1.0
+            relative = float((everything.max() - everything.min()) / scale)
+            out[name] = {
+                "nominal": values["median"],
+                "min": float(everything.min()),
+                "max": float(everything.max()),
+                "relative_spread": relative,
+                "sensitive": bool(relative > threshold),
+                "companions": medians.tolist(),
+            }
+        return out
 
     def revolution_statistics(self) -> dict[str, np.ndarray]:
         """Each revolution's named statistics (``jaxclear.analysis.statistics``): {name: (R,)};
@@ -334,6 +383,8 @@ def simulate_revolutions(
     y0=None,
     contact_events: int = 0,
     on_revolution: Callable[[int, Trajectory], None] | None = None,
+    companions: int = 0,
+    seed: int = 0,
 ) -> RevolutionRun:
     """Simulate a crank-driven mechanism one revolution per solve, with per-revolution statistics
     and a steady-state verdict (see the module docstring).
@@ -354,6 +405,10 @@ def simulate_revolutions(
         contact_events: events recorded per revolution and clearance joint (``simulate``).
         on_revolution: called after each revolution with its index and ``Trajectory`` (e.g. to
             write finished work or show progress).
+        companions: K > 0 also solves K companions in one vectorised batch per revolution, each
+            started from the initial state perturbed at the rounding level
+            (``COMPANION_PERTURBATION``, random signs from ``seed``) and run for the nominal run's
+            revolutions: ``RevolutionRun.spread`` then says which statistics move under it.
 
     Returns:
         A ``RevolutionRun``. A failed revolution ends the run: ``trajectory`` then ends with it
@@ -378,11 +433,18 @@ def simulate_revolutions(
         total = float(max_revolutions)
     if int(points_per_revolution) < 2:
         raise ValueError(f"points_per_revolution must be at least 2, got {points_per_revolution}.")
+    if int(companions) < 0:
+        raise ValueError(f"companions must be 0 or more, got {companions}.")
     if skip != "auto" and (isinstance(skip, str) or not (0 <= float(skip) < total)):
         raise ValueError(f'skip must be "auto" or in [0, revolutions), got {skip!r}.')
     config = solver_config(solver, mechanism)
     t_keep = None if skip == "auto" else t0 + float(skip) * period
-    state = assemble(mechanism, t0) if y0 is None else y0
+    state = assemble(mechanism, t0) if y0 is None else jnp.asarray(y0, dtype=float)
+    others = None
+    if companions:
+        xi = np.random.default_rng(seed).standard_normal((int(companions), state.shape[0]))
+        others = jnp.asarray(np.asarray(state) * (1.0 + COMPANION_PERTURBATION * xi))
+    companion_parts: list[Trajectory] = []
     parts: list[Trajectory] = []
     returns = []
     verdict = None
@@ -404,6 +466,12 @@ def simulate_revolutions(
             throw=False,
         )
         parts.append(traj)
+        if others is not None:
+            batch = _companion_revolution(
+                mechanism, others, start, end, points, config, contact_events, t_keep
+            )
+            companion_parts.append(batch)
+            others = batch.y_final
         if on_revolution is not None:
             on_revolution(k, traj)
         if not bool(traj.succeeded):
@@ -448,7 +516,27 @@ def simulate_revolutions(
         kept=kept,
         period=period,
         statistics_start=float(parts[kept[0]].t[0]) if t_keep is None else float(t_keep),
+        companion_revolutions=companion_parts[: len(parts)] or None,
     )
+
+
+def _companion_revolution(mechanism, states, start, end, points, config, contact_events, t_keep):
+    """One revolution of the companions: ``simulate`` vmapped over their initial states."""
+
+    def one(y):
+        return simulate(
+            mechanism,
+            end,
+            t0=start,
+            num_points=points,
+            solver=config,
+            y0=y,
+            statistics_start=start if t_keep is None else max(start, t_keep),
+            contact_events=contact_events,
+            throw=False,
+        )
+
+    return eqx.filter_vmap(one)(states)
 
 
 def _is_whole(traj: Trajectory, period: float) -> bool:
