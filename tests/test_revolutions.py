@@ -3,6 +3,7 @@ statistics that do not depend on the output grid (issue: results that hold up)."
 
 import dataclasses
 import json
+from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
@@ -13,6 +14,7 @@ from jaxclear.mechanisms import slider_crank
 from jaxclear.solve import combine_extremes, join_trajectories
 from jaxclear.studies import simulate_revolutions, steady_state
 
+MONTECARLO_EXAMPLE = Path(__file__).parents[1] / "examples" / "montecarlo_h7g6.toml"
 IDEAL_TORQUE = (
     138.52  # N m: closed-form extremes of the ideal benchmark at 5000 rpm (test_statistics.py)
 )
@@ -155,3 +157,34 @@ def test_negative_spread_is_refused(tmp_path, capsys):
         cli.main(["run", "--spread", "-1", "--out", str(tmp_path / "o"), "--quiet"])
     assert exc.value.code == 2
     assert "--spread" in capsys.readouterr().err
+
+
+def test_revolutions_auto_stops_when_settled(tmp_path):
+    """``jaxclear run --revolutions auto`` solves until the verdict settles (the ideal mechanism:
+    period-1 after two revolutions) and keeps the settled revolutions."""
+    out = tmp_path / "auto"
+    argv = [
+        "run",
+        "--clearance-joints",
+        "none",
+        "--revolutions",
+        "auto",
+        "--points-per-revolution",
+        "90",
+    ]
+    assert cli.main([*argv, "--no-plots", "--quiet", "--out", str(out)]) == 0
+    info = json.loads((out / "run.json").read_text())
+    assert info["steady_state"]["verdict"] == "period-1"
+    assert info["steady_state"]["revolutions"] == 2 < 12
+    assert info["t_end_s"] == pytest.approx(2 * 60 / 5000, rel=1e-9) and info["num_points"] == 181
+    assert info["kept_window_s"][0] == pytest.approx(0.0, abs=1e-12)  # settled from revolution 0
+
+
+def test_revolutions_auto_is_refused_where_a_horizon_is_needed(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(
+            ["montecarlo", str(MONTECARLO_EXAMPLE), "--samples", "2", "--revolutions", "auto"]
+            + ["--devices", "1", "--out", str(tmp_path / "m"), "--quiet"]
+        )
+    assert exc.value.code == 2
+    assert "auto is for jaxclear run only" in capsys.readouterr().err

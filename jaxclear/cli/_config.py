@@ -10,9 +10,11 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from ..studies._revolutions import MAX_REVOLUTIONS
 from ._common import UsageError
 from ._setting_table import SETTINGS
 from ._settings import (
+    AUTO,
     BY_LABEL,
     PER_JOINT,
     SECTIONS,
@@ -260,10 +262,11 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
             "a custom mechanism needs [bodies.<name>] tables (and [joints], [driver]); see docs/cli.md"
         )
     simulation = config["simulation"]
-    if simulation["skip_revolutions"] >= simulation["revolutions"]:
+    horizon = MAX_REVOLUTIONS if simulation["revolutions"] == AUTO else simulation["revolutions"]
+    if simulation["skip_revolutions"] >= horizon:
         raise UsageError(
             f"{sources[('simulation', 'skip_revolutions')]}: skip_revolutions ({simulation['skip_revolutions']:g}) must be "
-            f"smaller than revolutions ({simulation['revolutions']:g}) so that something is left to plot; "
+            f"smaller than revolutions ({horizon:g}) so that something is left to plot; "
             "lower --skip-revolutions or raise --revolutions"
         )
     return Settings(

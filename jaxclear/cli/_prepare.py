@@ -9,6 +9,7 @@ from ..solve import recommended_solver, solver_config
 from ._common import UsageError
 from ._config import Settings
 from ._setting_table import solver_help, solver_names
+from ._settings import AUTO
 
 
 def solver_for(settings: Settings, mechanism=None):
@@ -27,10 +28,22 @@ def solver_for(settings: Settings, mechanism=None):
     return solver.replace(**changes) if changes else solver
 
 
-def grid(settings: Settings) -> tuple[float, int]:
-    """(end time in s, number of saved instants)."""
+def grid(settings: Settings, revolutions: float | int | None = None) -> tuple[float, int]:
+    """(end time in s, number of saved instants) of the configured revolutions, or of
+    ``revolutions`` if given.
+
+    Raises:
+        UsageError: ``revolutions = "auto"`` in a command that needs a fixed horizon (ensembles,
+            fits): only ``jaxclear run`` decides its horizon as it goes.
+    """
     rpm = settings.config["mechanism"]["rpm"]
-    revolutions = settings.config["simulation"]["revolutions"]
+    if revolutions is None:
+        revolutions = settings.config["simulation"]["revolutions"]
+    if revolutions == AUTO:
+        raise UsageError(
+            f"{settings.source('simulation', 'revolutions')} auto is for jaxclear run only (it "
+            "solves until the response settles); give a number of revolutions here"
+        )
     intervals = max(1, round(revolutions * settings.config["simulation"]["points_per_revolution"]))
     return 60.0 * revolutions / rpm, intervals + 1
 

@@ -33,7 +33,12 @@ from ..io import (
 from ..mechanisms import is_slider_crank
 from ..solve import finite_rows, ideal_mechanism, wall_start, window
 from ..studies import simulate_revolutions
-from ..studies._revolutions import COMPANION_PERTURBATION, SENSITIVE_SPREAD, segment_points
+from ..studies._revolutions import (
+    COMPANION_PERTURBATION,
+    MAX_REVOLUTIONS,
+    SENSITIVE_SPREAD,
+    segment_points,
+)
 from ._common import (
     PROG,
     RunError,
@@ -47,6 +52,7 @@ from ._folders import StagedOutput, claim_output
 from ._mechanism_config import build_mechanism
 from ._prepare import grid, kept_start, solver_for
 from ._settings import (
+    AUTO,
     add_setting_arguments,
     config_reference,
 )
@@ -158,6 +164,8 @@ def _block(traj):
 def event_capacity(settings: Settings) -> int:
     """Contact events recorded per clearance joint (``simulate(contact_events=...)``)."""
     revolutions = settings.config["simulation"]["revolutions"]
+    if revolutions == AUTO:
+        revolutions = MAX_REVOLUTIONS
     return int(max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions)))
 
 
@@ -187,7 +195,9 @@ def timed_revolutions(
         jaxclear.simulate(
             mechanism,
             period * WARMUP_FRACTION,
-            num_points=segment_points(min(float(revolutions), 1.0), per_revolution),
+            num_points=segment_points(
+                1.0 if revolutions == AUTO else min(float(revolutions), 1.0), per_revolution
+            ),
             solver=solver,
             throw=False,
             contact_events=contact_events,
@@ -195,12 +205,19 @@ def timed_revolutions(
     )
     compile_time = time.perf_counter() - start
     start = time.perf_counter()
-    with progress_bar(progress, math.ceil(revolutions), "revolutions") as bar:
+    total = MAX_REVOLUTIONS if revolutions == AUTO else math.ceil(revolutions)
+    with progress_bar(progress, total, "revolutions") as bar:
         result = simulate_revolutions(
             mechanism,
             revolutions,
             points_per_revolution=per_revolution,
-            skip=simulation["skip_revolutions"],
+            # revolutions auto: the start-up left out follows the verdict unless it was given
+            skip=(
+                AUTO
+                if simulation["revolutions"] == AUTO
+                and settings.source("simulation", "skip_revolutions") == "default"
+                else simulation["skip_revolutions"]
+            ),
             solver=solver,
             contact_events=contact_events,
             on_revolution=lambda k, traj: bar.update(1),
@@ -332,7 +349,8 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     quiet = args.quiet
     progress = not (quiet or args.no_progress) and sys.stderr.isatty()
     say = (lambda *a, **k: None) if quiet else print
-    t1, num_points = grid(settings)
+    auto = config["simulation"]["revolutions"] == AUTO
+    t1, num_points = grid(settings, MAX_REVOLUTIONS if auto else None)  # auto: at most
     try:
         jaxclear.assemble(ideal)  # a mechanism that cannot assemble is bad input: exit 2
         out_dir = claim_output(settings, "run", say)  # all input checked: may it take our results?
@@ -356,7 +374,12 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     say(
         f"jaxclear {jaxclear.__version__}: {settings.mechanism}, "
         f"{_joints_text(settings, names, mechanism.translational_clearance_joints)}, {rpm:g} rpm, "
-        f"{revs:g} rev ({t1:.6g} s, {num_points} points; plots and statistics from revolution {skip:g}), "
+        + (
+            f"revolutions auto (until settled, at most {MAX_REVOLUTIONS}; "
+            if auto
+            else f"{revs:g} rev ({t1:.6g} s, {num_points} points; "
+        )
+        + f"plots and statistics from revolution {skip:g}), "
         f"{start} start, solver {config['solver']['method']} ({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
     )
     say("compiling (one-off) and simulating ...", flush=True)
@@ -370,6 +393,9 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
             companions=args.spread,
         )
         traj = revolution_run.trajectory
+        if auto and bool(traj.succeeded):  # the horizon the run took
+            t1, num_points = float(traj.t_final), int(np.asarray(traj.t).size)
+        t_keep = revolution_run.statistics_start  # the verdict's, with revolutions auto
     except jaxclear.AssemblyError as e:
         raise UsageError(f"the mechanism cannot be assembled: {one_line(e)}") from None
     except jaxclear.ModelError as e:
@@ -419,7 +445,8 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     if args.spread:
         say(_spread_line(revolution_run, args.spread))
     say(
-        f"largest over the kept revolutions (from revolution {skip:g}): {_figures(kept, statistics)}"
+        f"largest over the kept revolutions (from revolution {revolution_run.kept[0]}): "
+        f"{_figures(kept, statistics)}"
     )
     say(f"wrote {', '.join(sorted([p.name for p in paths.values()] + files))} to {out_dir}/")
     return 0

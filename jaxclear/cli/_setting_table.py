@@ -58,7 +58,8 @@ class Setting:
     Attributes:
         section: TOML table (``mechanism``, ``clearance``, ``simulation``, ``solver``, ``output``).
         key: TOML key; also the name used in run.json.
-        kind: ``float``, ``int``, ``str``, ``bool``, ``"gravity"`` (bool or a number), or ``dict``
+        kind: ``float``, ``int``, ``str``, ``bool``, ``"gravity"`` (bool or a number),
+            ``"revolutions"`` (a number or ``"auto"``), or ``dict``
             (a TOML inline table with its own schema, checked where it is read:
             ``lubrication``, ``_mechanism_config.LUBRICATION_KEYS``).
         default: built-in default, or a mapping mechanism name -> default where it differs per
@@ -613,10 +614,11 @@ SETTINGS: tuple[Setting, ...] = (
     Setting(
         "simulation",
         "revolutions",
-        float,
+        "revolutions",
         2.0,
         "rev",
-        "simulated revolutions of the driven body (may be fractional)",
+        "simulated revolutions of the driven body (may be fractional), or auto (jaxclear run "
+        "only): until the response settles into a period-k orbit, at most 12 (docs/outputs.md)",
         "--revolutions",
         "positive",
     ),

@@ -61,6 +61,10 @@ def config_reference() -> str:
     return "\n".join(lines)
 
 
+AUTO = "auto"
+"""``revolutions = "auto"``: ``jaxclear run`` solves until the response settles (``simulate_revolutions``)."""
+
+
 # --- checks -----------------------------------------------------------------------------------------
 
 
@@ -72,6 +76,8 @@ def type_ok(s: Setting, value) -> bool:
         return isinstance(value, int) and not isinstance(value, bool)
     if s.kind == "gravity":
         return isinstance(value, int | float)
+    if s.kind == "revolutions":
+        return value == AUTO or (isinstance(value, int | float) and not isinstance(value, bool))
     return isinstance(value, s.kind)
 
 
@@ -82,6 +88,7 @@ def type_name(s: Setting) -> str:
         str: "a string",
         bool: "true or false",
         "gravity": "true, false or a number",
+        "revolutions": 'a number or "auto"',
         dict: "an inline table { key = value, ... }",
     }[s.kind]
 
@@ -96,7 +103,7 @@ def check_value(s: Setting, value, source: str) -> None:
         if not value.strip():
             raise UsageError(f"{source} is empty; {_empty_hint(s)}")
         return
-    if s.check is None or isinstance(value, bool):
+    if s.check is None or isinstance(value, bool) or value == AUTO:
         return
     if not math.isfinite(value):
         raise UsageError(f"{source} must be finite, got {value!r}")
@@ -130,10 +137,12 @@ def _empty_hint(s: Setting) -> str:
 
 def _number(kind):
     def convert(text: str):
+        if kind == "revolutions" and text == AUTO:
+            return AUTO
         try:
-            return kind(text)
+            return float(text) if kind == "revolutions" else kind(text)
         except ValueError:
-            what = "an integer" if kind is int else "a number"
+            what = {int: "an integer", "revolutions": 'a number or "auto"'}.get(kind, "a number")
             raise argparse.ArgumentTypeError(f"needs {what}, got {text!r}") from None
 
     return convert
