@@ -611,3 +611,18 @@ def test_gradient_and_vmap_through_the_joint():
     np.testing.assert_allclose(
         batch, [offset(jnp.asarray(1e-4)), offset(jnp.asarray(2e-4))], rtol=1e-9
     )
+
+
+def test_ideal_mechanism_restores_the_ideal_guide():
+    """``ideal_mechanism`` (the plots' reference run) turns the translational clearance joint back
+    into the ideal guide it replaced: the ideal benchmark's slider position at assembly."""
+    with_gap = slider_crank(translational_clearance=1e-3)
+    ideal = jaxclear.ideal_mechanism(with_gap)
+    assert not ideal.translational_clearance_joints
+    guide = [j for j in ideal.joints if j.name == "slider_guide"]
+    assert len(guide) == 1 and isinstance(guide[0], jaxclear.TranslationalJoint)
+    np.testing.assert_allclose(
+        np.asarray(jaxclear.assemble(ideal)),
+        np.asarray(jaxclear.assemble(slider_crank())),
+        atol=1e-12,
+    )

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core._errors import ModelError
-from ..model import Mechanism, RevoluteJoint
+from ..model import Mechanism, RevoluteJoint, TranslationalJoint
 from ._simulate import simulate
 
 REACTION_HORIZON = 1e-7
@@ -42,13 +42,24 @@ Chosen by measurement against 1e-4 (the floor), 0.3, 3, 10, 100 and 1e6 m/s (doc
 
 def ideal_mechanism(mechanism: Mechanism) -> Mechanism:
     """``mechanism`` with each clearance joint replaced by an ideal ``RevoluteJoint`` of the same name
-    whose first body is the bearing body and second the journal body (at their joint points)."""
+    whose first body is the bearing body and second the journal body (at their joint points), and
+    each translational clearance joint by the ideal ``TranslationalJoint`` it replaced (slider
+    first, same guide line and angle)."""
     replaced = tuple(
         RevoluteJoint(c.name, c.bearing_body, c.bearing_point, c.journal_body, c.journal_point)
         for c in mechanism.clearance_joints
     )
+    guides = tuple(
+        TranslationalJoint(
+            t.name, t.slider_body, t.slider_point, t.guide_body, t.guide_point, t.axis, t.angle
+        )
+        for t in mechanism.translational_clearance_joints
+    )
     return dataclasses.replace(
-        mechanism, joints=(*mechanism.joints, *replaced), clearance_joints=()
+        mechanism,
+        joints=(*mechanism.joints, *replaced, *guides),
+        clearance_joints=(),
+        translational_clearance_joints=(),
     )
 
 
