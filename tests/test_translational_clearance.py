@@ -457,7 +457,9 @@ def test_translational_keys_elsewhere_exit_2(tmp_path, capsys, text, message):
 
 def test_example_runs_from_the_command_line(tmp_path, capsys):
     """``jaxclear run`` on the example: the header names the translational joint with its values,
-    the printed figures its peak corner force, and run.json's corner-pair mode shares are those of the results' corner-pair mode columns."""
+    the printed figures its peak corner force; the joint's contacts and its corner pairs' are
+    located from the solver's steps (modes.csv, run.json), and the corner-pair mode shares agree
+    with the results' corner-pair mode columns to the saved grid's resolution."""
     out = tmp_path / "out"
     argv = ["run", str(EXAMPLE), "--revolutions", "0.25", "--skip-revolutions", "0"]
     assert cli.main([*argv, "--no-plots", "--no-progress", "--out", str(out)]) == 0
@@ -471,13 +473,21 @@ def test_example_runs_from_the_command_line(tmp_path, capsys):
     info = json.loads((out / "run.json").read_text())
     shares = info["corner_pair_mode_shares"]
     assert info["status"] == "complete" and sum(shares.values()) == pytest.approx(1.0)
+    assert info["contact_mode_source"].startswith("contact onsets and ends located")
+    assert set(info["contact_modes"]) == {"slider_guide"}
+    assert set(info["corner_pair_modes"]) == {"slider_guide.upper", "slider_guide.lower"}
+    located = (out / "modes.csv").read_text().splitlines()[1:]
+    channels = {row.split(",")[0] for row in located}
+    assert "slider_guide" in channels and channels & {"slider_guide.upper", "slider_guide.lower"}
     npz = np.load(out / "results.npz")
     pairs = np.stack([npz["slider_guide_mode_upper"], npz["slider_guide_mode_lower"]], axis=1)
+    changes = int(np.sum(np.any(pairs[1:] != pairs[:-1], axis=1)))
     names = {0.0: "free", 1.0: "impact", 2.0: "continuous"}
     for key, share in shares.items():
         upper, lower = (part.split(":")[1] for part in key.split(" "))
         count = sum((names[u], names[v]) == (upper, lower) for u, v in pairs)
-        assert share == pytest.approx(count / len(pairs))
+        # each change of the saved labels can move a share by at most one saved interval
+        assert abs(share - count / len(pairs)) <= (changes + 1) / (len(pairs) - 1)
     # the slider leaves the centre of the guide and lands on a face within the quarter revolution
     assert shares.get("slider_guide.upper:free slider_guide.lower:free", 0.0) < 1.0
 

@@ -14,7 +14,9 @@ from ._modes import all_combinations as all_combinations
 from ._modes import combination_label as combination_label
 from ._modes import combination_shares as combination_shares
 from ._modes import contact_events as contact_events
+from ._modes import contact_joints as contact_joints
 from ._modes import contact_modes as contact_modes
+from ._modes import corner_pair_channels as corner_pair_channels
 from ._modes import event_mode_shares as event_mode_shares
 from ._modes import trajectory_modes as trajectory_modes
 from ._orbits import distinct_points as distinct_points

@@ -11,6 +11,8 @@ import itertools
 
 import numpy as np
 
+from ..model._translational_clearance import CORNER_PAIRS
+
 FREE, IMPACT, CONTINUOUS = 0, 1, 2
 MODE_NAMES = {FREE: "free", IMPACT: "impact", CONTINUOUS: "continuous"}
 DEFAULT_CONTINUOUS_FRACTION = (
@@ -64,6 +66,25 @@ def contact_modes(t, penetration, minimum_duration: float) -> np.ndarray:
     for a, b, mode in zip(runs["first"], runs["last"], runs["mode"]):
         labels[a : b + 1] = mode
     return labels
+
+
+def contact_joints(mechanism) -> list[str]:
+    """The joints whose contact modes combine (``event_mode_shares``, ensembles, revolutions):
+    the revolute clearance joints, then the translational clearance joints (each as a whole, in
+    contact when one of its corners is), in the mechanism's order."""
+    return [j.name for j in mechanism.clearance_joints] + [
+        j.name for j in mechanism.translational_clearance_joints
+    ]
+
+
+def corner_pair_channels(mechanism) -> list[str]:
+    """The corner pairs of the translational clearance joints, ``<J>.upper`` and ``<J>.lower``
+    (``jaxclear.model.CORNER_PAIRS``), whose contacts are recorded beside the joint's own."""
+    return [
+        f"{j.name}.{pair}"
+        for j in mechanism.translational_clearance_joints
+        for pair in CORNER_PAIRS
+    ]
 
 
 def crank_period(mechanism) -> float | None:
@@ -217,8 +238,11 @@ def event_mode_shares(
         "continuous_contacts": counts}}, "combinations": {"O:free A:impact B:continuous": share},
         "labels": {"F-I-C": share}}`` over [start, end of the run]; the combinations are those of
         all clearance joints at once (3ⁿ possible, only those that occur are listed), in the
-        mechanism's joint order; ``labels`` are the same shares under the short labels of
-        ``combination_label`` (F free flight, I impact, C continuous contact).
+        order of ``contact_joints`` (revolute clearance joints, then translational ones, each in
+        contact when one of its corners is); ``labels`` are the same shares under the short labels
+        of ``combination_label`` (F free flight, I impact, C continuous contact). With
+        translational clearance joints, ``"corner_pairs"`` holds the same entries for their corner
+        pairs (``<J>.upper``, ``<J>.lower``: in contact when one of the pair's corners is).
     """
     events = contact_events(
         traj,
@@ -228,8 +252,12 @@ def event_mode_shares(
     )
     x = traj.extremes
     t_start = float(x.start) if start is None else float(start)
-    order = [j.name for j in traj.mechanism.clearance_joints if j.name in events]
-    return shares_of_contacts(events, order, t_start, float(traj.t_final))
+    order = [j for j in contact_joints(traj.mechanism) if j in events]
+    shares = shares_of_contacts(events, order, t_start, float(traj.t_final))
+    pairs = [c for c in corner_pair_channels(traj.mechanism) if c in events]
+    if pairs:
+        shares["corner_pairs"] = shares_of_contacts(events, pairs, t_start, float(traj.t_final))
+    return shares
 
 
 MODE_LETTERS = {FREE: "F", IMPACT: "I", CONTINUOUS: "C"}

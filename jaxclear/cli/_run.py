@@ -15,6 +15,7 @@ import numpy as np
 import jaxclear
 
 from .._core._progress import progress_bar
+from ..analysis import contact_joints
 from ..contact import CONTACT_LAWS
 from ..friction import FRICTION_LAWS
 from ..internal import EVENTS_PER_REVOLUTION
@@ -389,7 +390,7 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
             settings,
             solver,
             progress,
-            event_capacity(settings) if names else 0,
+            event_capacity(settings) if contact_joints(mechanism) else 0,
             companions=args.spread,
         )
         traj = revolution_run.trajectory
@@ -414,7 +415,7 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
 
     kept = window(traj, t_keep)
     statistics = run_statistics(traj)
-    rows = revolution_run.table(fraction if names else None)
+    rows = revolution_run.table(fraction if contact_joints(mechanism) else None)
     info.update(
         steady_state=revolution_run.verdict.as_dict(),
         summary=revolution_run.summary(),
@@ -564,7 +565,7 @@ def write_run_outputs(
         files += [p.name for p in save_translational_plots(kept, stage)]  # slider tilt, corners
     modes = (
         _contact_modes(traj, kept, fraction, period, t_keep)
-        if names
+        if names or traj.mechanism.translational_clearance_joints
         else {"contact_mode_shares": {}, "contact_modes": {}}
     )
     if modes.get("events") is not None:
@@ -575,8 +576,6 @@ def write_run_outputs(
 
             files.append(save_mode_timeline(traj, stage, events=events, start=t_keep).name)
     modes.pop("events", None)
-    if traj.mechanism.translational_clearance_joints:
-        modes["corner_pair_mode_shares"] = _corner_pair_shares(kept, fraction, period)
     if revolution_rows:
         files.append(write_revolutions_csv(stage / REVOLUTIONS_CSV, revolution_rows).name)
     info.update(statistics=statistics, **modes, files=files)
@@ -592,38 +591,48 @@ def _contact_modes(traj, kept, fraction: float, period: float, t_keep: float) ->
     from ..analysis import contact_events, event_mode_shares
 
     rule = {"continuous_fraction": fraction, "reference_period_s": period}
+    guides = bool(traj.mechanism.translational_clearance_joints)
     try:
         events = contact_events(traj, continuous_fraction=fraction, start=t_keep)
         shares = event_mode_shares(traj, continuous_fraction=fraction, start=t_keep)
     except ValueError as e:  # the buffer overflowed: shares from the saved instants instead
-        return {
+        out = {
             "contact_mode_shares": mode_shares(kept, fraction, reference_period=period),
             "contact_modes": {},
             "contact_mode_source": f"saved instants ({one_line(e)})",
             "contact_mode_rule": rule,
             "events": None,
         }
-    return {
+        if guides:
+            out["corner_pair_mode_shares"] = _corner_pair_shares(kept, fraction, period)
+        return out
+    out = {
         "contact_mode_shares": shares["combinations"],
         "contact_modes": shares["joints"],
         "contact_mode_source": "contact onsets and ends located from the solver's steps",
         "contact_mode_rule": rule,
         "events": events,
     }
+    if guides:
+        out["corner_pair_mode_shares"] = shares["corner_pairs"]["combinations"]
+        out["corner_pair_modes"] = shares["corner_pairs"]["joints"]
+    return out
 
 
 def _corner_pair_shares(kept, fraction: float, period: float) -> dict:
-    """run.json's ``corner_pair_mode_shares``: time share of each combination of the corner pairs'
-    contact modes of the translational clearance joints (``<J>.upper``: the upper front and rear
-    corners against the upper guide face, ``<J>.lower`` likewise; a pair is in contact when one of
-    its corners is), over the kept saved instants, as the columns ``<J>_mode_upper`` and
-    ``<J>_mode_lower`` label them (docs/model.md §2c)."""
+    """run.json's ``corner_pair_mode_shares`` where the contact events overflowed their buffer:
+    time share of each combination of the corner pairs' contact modes of the translational
+    clearance joints (``<J>.upper``: the upper front and rear corners against the upper guide
+    face, ``<J>.lower`` likewise; a pair is in contact when one of its corners is), over the kept
+    saved instants, as the columns ``<J>_mode_upper`` and ``<J>_mode_lower`` label them
+    (docs/model.md §2c)."""
     from ..analysis import combination_shares, contact_modes
+    from ..model import CORNER_PAIRS
 
     modes = {}
     for joint in kept.mechanism.translational_clearance_joints:
         depth = np.asarray(kept.clearance[joint.name]["corner_penetration"], dtype=float)
-        for pair, corners in (("upper", slice(0, 2)), ("lower", slice(2, 4))):
+        for pair, corners in CORNER_PAIRS.items():
             modes[f"{joint.name}.{pair}"] = contact_modes(
                 kept.t, depth[:, corners].max(axis=1), fraction * period
             )

@@ -21,4 +21,6 @@ from ._parameters import get_parameter as get_parameter
 from ._parameters import parameter_info as parameter_info
 from ._parameters import parameter_names as parameter_names
 from ._parameters import with_parameters as with_parameters
+from ._translational_clearance import CORNER_NAMES as CORNER_NAMES
+from ._translational_clearance import CORNER_PAIRS as CORNER_PAIRS
 from ._translational_clearance import TranslationalClearanceJoint as TranslationalClearanceJoint

@@ -53,6 +53,11 @@ CORNER_NAMES = ("upper_front", "upper_rear", "lower_rear", "lower_front")
 """Corner labels in state and output order: 'upper' faces the guide face on the side of the guide
 normal n = axis turned +90°, 'front' lies along +axis from the slider's reference point."""
 
+CORNER_PAIRS = {"upper": slice(0, 2), "lower": slice(2, 4)}
+"""The corner pairs, each the two corners (in ``CORNER_NAMES`` order) that face one guide face: a
+pair is in contact when one of its corners is; both pairs at once is the slider jammed across the
+guide on opposite corners (docs/model.md §2c)."""
+
 
 def _default_contact_law():
     return Flores(stiffness=DEFAULT_CORNER_STIFFNESS, restitution=DEFAULT_CORNER_RESTITUTION)

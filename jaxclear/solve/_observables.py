@@ -17,6 +17,7 @@ from ..dynamics._equations import (
     solve_accelerations,
 )
 from ..dynamics._groups import evaluation_groups
+from ..model._translational_clearance import CORNER_PAIRS
 from ._extremes import Observation
 from ._trajectory import Trajectory
 
@@ -77,9 +78,16 @@ def observe(t, y, mechanism) -> Observation:
     normal_force, penetration = {}, {}
     for group, cache in zip(evaluation_groups(mechanism), caches):
         for name, (kinematics, contact) in group.contacts(cache).items():
-            # a translational clearance joint has one value per corner: its entry is the largest
+            # a translational clearance joint has one value per corner: its entry is the largest,
+            # and each corner pair (the two corners that face one guide face) is a channel of its
+            # own, "<joint>.upper" and "<joint>.lower", so that its contacts are located too
             normal_force[name] = _largest(contact.normal_force)
             penetration[name] = _largest(kinematics.penetration)
+            if jnp.ndim(kinematics.penetration) == 1:
+                for pair, corners in CORNER_PAIRS.items():
+                    channel = f"{name}.{pair}"
+                    normal_force[channel] = jnp.max(contact.normal_force[corners])
+                    penetration[channel] = jnp.max(kinematics.penetration[corners])
     if mechanism.driver is not None:
         torque = -lam[mechanism.constraint_slices[mechanism.driver.name]][0]
     else:

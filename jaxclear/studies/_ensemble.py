@@ -42,6 +42,7 @@ from ..analysis._modes import (
     IMPACT,
     MODE_NAMES,
     all_combinations,
+    contact_joints,
     grid_contacts,
     located_contacts,
     shares_of_contacts,
@@ -107,7 +108,7 @@ def _member(
         solver=config,
         statistics_start=start,
         throw=False,
-        contact_events=events if mechanism.clearance_joints else 0,
+        contact_events=events if contact_joints(mechanism) else 0,
     )
     stats = dict(statistics(traj))
     if mechanism.driver is not None:
@@ -126,8 +127,10 @@ def _member(
         mine, theirs = signals(traj, deviation), signals(ideal, deviation)
         for name in deviation:
             stats[f"{name}_deviation"] = _window_rms(ts, mine[name] - theirs[name], start)
-    contacts = {"penetration": {j: traj.clearance[j]["penetration"] for j in traj.clearance}}
-    if mechanism.clearance_joints:
+    # in the order of the modes' combinations (contact_joints)
+    joints = contact_joints(mechanism)
+    contacts = {"penetration": {j: traj.clearance[j]["penetration"] for j in joints}}
+    if joints:
         x = traj.extremes
         assert x is not None  # simulate's default extremes=True
         contacts.update(events=x.events, count=x.event_count, ongoing=x.contact_onset)
@@ -313,7 +316,7 @@ def _plan(
         jnp.asarray(t1),
         jnp.asarray(start),
     )
-    joints = [j.name for j in mechanism.clearance_joints]
+    joints = contact_joints(mechanism)
     return _Plan(
         mechanism=mechanism,
         names=names,

@@ -63,6 +63,7 @@ import numpy as np
 
 from .._core._errors import DataError, ModelError
 from .._core._progress import Progress, progress_bar
+from ..analysis._modes import contact_joints, corner_pair_channels
 from ..analysis._signals import signal_names, signals
 from ..io._measurements import Measurements
 from ..model import Mechanism, get_parameter, with_parameters
@@ -180,7 +181,7 @@ def _automatic_windows(
     Returns:
         (fractions of the record, a note on how the first window was chosen).
     """
-    if not mechanism.clearance_joints:  # no contacts to wait for: the record is one window
+    if not contact_joints(mechanism):  # no contacts to wait for: the record is one window
         return (1.0,), "one window: the mechanism has no clearance joint"
     probe = _Windows.of(mechanism, data, specs, config, t0, t_end, (1.0,))
     mech, params, names, solver = probe.static
@@ -203,7 +204,12 @@ def _automatic_windows(
             FIRST_CONTACTS,
         )
         contacts = []
+        pairs = set(
+            corner_pair_channels(mechanism)
+        )  # a guide's contacts count once, as the joint's
         for joint, buffer in events.items():
+            if joint in pairs:
+                continue
             rows = np.asarray(buffer)[: min(int(counts[joint]), FIRST_CONTACTS)]
             contacts += [(float(a), float(b)) for a, b in rows]
         if not bool(ok):

@@ -25,7 +25,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..analysis._modes import contact_events, crank_period, shares_of_contacts
+from ..analysis._modes import contact_events, contact_joints, crank_period, shares_of_contacts
 from ..analysis._statistics import statistics
 from ..model import Mechanism
 from ..solve._extremes import combine_extremes
@@ -347,7 +347,7 @@ class RevolutionRun:
             reference_period=self.period,
             start=float(self.trajectory.t[0]),
         )
-        order = [j.name for j in self.trajectory.mechanism.clearance_joints if j.name in events]
+        order = [j for j in contact_joints(self.trajectory.mechanism) if j in events]
         out = []
         for traj in self.revolutions:
             a, b = float(traj.t[0]), float(traj.t_final)
