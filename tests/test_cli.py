@@ -206,7 +206,12 @@ def test_defaults_are_three_clearance_joints():
         assert isinstance(joint.contact_law, Hybrid)
         assert isinstance(joint.friction_law, LuGre)
         assert float(joint.geometry.clearance) == pytest.approx(CLEARANCE)
-    assert grid(settings) == (pytest.approx(2 * 60 / 5000), 721)
+    # run: until settled (at most 12 revolutions); the ensembles and fit: 2 revolutions
+    assert settings.config["simulation"]["revolutions"] == "auto"
+    assert grid(settings, 12) == (pytest.approx(12 * 60 / 5000), 4321)
+    for argv in (["montecarlo", "--samples", "2"], ["fit", "data.csv", "--fit", "B.clearance"]):
+        other = resolve_settings(build_parser().parse_args(argv))
+        assert grid(other) == (pytest.approx(2 * 60 / 5000), 721), argv[0]
     assert settings.config["simulation"]["start"] == "centred"
     assert settings.config["simulation"]["skip_revolutions"] == 1.0
     imex = resolve_settings(build_parser().parse_args(["run", "--solver", "imex"]))

@@ -228,7 +228,7 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
         if (s.section, s.key) == ("mechanism", "name"):
             config["mechanism"]["name"], sources[("mechanism", "name")] = name, name_source
             continue
-        value, source = s.default_for(name), "default"
+        value, source = s.default_for(name, getattr(args, "command", None)), "default"
         if file is not None and (s.section, s.key) in file.values:
             value, source = file.values[(s.section, s.key)], f"{s.label} in {file.path!r}"
         flag = getattr(args, s.dest, None) if s.flag else None

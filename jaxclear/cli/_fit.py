@@ -163,7 +163,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         help="growing windows as fractions of the record, ending with 1 (default: the first up "
         "to the first contacts, then twice as long each)",
     )
-    add_setting_arguments(fit)
+    add_setting_arguments(fit, "fit")
     fit.add_argument("--no-progress", action="store_true", help="no progress bar")
     fit.add_argument("--quiet", "-q", action="store_true", help="print nothing but errors")
     return fit

@@ -103,7 +103,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         metavar="S",
         help="seed of the draws (default 0); each parameter has its own stream",
     )
-    add_setting_arguments(mc)
+    add_setting_arguments(mc, "montecarlo")
     add_ensemble_arguments(mc)
     return mc
 

@@ -71,11 +71,14 @@ four-bar (--mechanism four_bar), or any mechanism described in CONFIG.toml (bodi
 driver, springs, loads; see docs/cli.md).
 
 Defaults: slider-crank at 5000 rpm with clearance joints O, A, B (c = 0.5 mm, hybrid contact law,
-LuGre friction), 2 revolutions, 360 points per revolution, no gravity, solver 'auto' (imex with
-LuGre friction, else fast; measured fastest here). '--clearance-joints none' gives ideal joints.
+LuGre friction), revolutions auto (one solve per revolution until the response settles into a
+period-k orbit, at most 12; '--revolutions 2' for a fixed horizon), 360 points per revolution, no
+gravity, solver 'auto' (imex with LuGre friction, else fast; measured fastest here).
+'--clearance-joints none' gives ideal joints.
 
-Start-up: by default journals start centred (--start centred) and the first revolution is left
-out of the plots and statistics (--skip-revolutions 1). Why: a centred journal flies free across
+Start-up: by default journals start centred (--start centred) and the revolutions before the
+response settles are left out of the plots and statistics (with a fixed horizon: the first
+revolution, --skip-revolutions 1). Why: a centred journal flies free across
 the clearance and hits the wall with a start-up impact about ten times larger than anything in the
 running motion; that transient would set the y-ranges of every plot and the peaks of the
 statistics. '--start wall' puts each journal on its wall along the ideal joint's reaction instead,
@@ -129,7 +132,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
     run.add_argument(
         "config", nargs="?", metavar="CONFIG.toml", help="TOML config file (keys below)"
     )
-    add_setting_arguments(run)
+    add_setting_arguments(run, "run")
     run.add_argument(
         "--spread",
         type=int,
@@ -380,8 +383,12 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
             if auto
             else f"{revs:g} rev ({t1:.6g} s, {num_points} points; "
         )
-        + f"plots and statistics from revolution {skip:g}), "
-        f"{start} start, solver {config['solver']['method']} ({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
+        + (
+            "plots and statistics from the settled revolutions), "
+            if auto and settings.source("simulation", "skip_revolutions") == "default"
+            else f"plots and statistics from revolution {skip:g}), "
+        )
+        + f"{start} start, solver {config['solver']['method']} ({solver.method}, rtol {solver.rtol:g}, atol {solver.atol:g})"
     )
     say("compiling (one-off) and simulating ...", flush=True)
     try:

@@ -75,6 +75,8 @@ class Setting:
         shared: allowed in its section's table (for ``[clearance]``: the shared defaults).
         per_joint: allowed in a per-joint table ``[clearance.<joint>]``, where it overrides the shared
             value for that joint.
+        command_defaults: ``(command, default)`` pairs where a command's default differs from
+            ``default`` (``revolutions``: auto for ``jaxclear run``, a fixed horizon elsewhere).
     """
 
     section: str
@@ -90,6 +92,7 @@ class Setting:
     choices: tuple[str, ...] | None = None
     shared: bool = True
     per_joint: bool = False
+    command_defaults: tuple[tuple[str, Any], ...] = ()
 
     @property
     def dest(self) -> str:
@@ -99,8 +102,11 @@ class Setting:
     def label(self) -> str:
         return f"[{self.section}] {self.key}"
 
-    def default_for(self, mechanism: str) -> Any:
-        """The default for ``mechanism`` (``None`` where it has none)."""
+    def default_for(self, mechanism: str, command: str | None = None) -> Any:
+        """The default for ``mechanism`` in ``command`` (``None`` where it has none)."""
+        for name, value in self.command_defaults:
+            if name == command:
+                return value
         if isinstance(self.default, Mapping):
             return self.default.get(mechanism)
         return self.default
@@ -618,9 +624,11 @@ SETTINGS: tuple[Setting, ...] = (
         2.0,
         "rev",
         "simulated revolutions of the driven body (may be fractional), or auto (jaxclear run "
-        "only): until the response settles into a period-k orbit, at most 12 (docs/outputs.md)",
+        "only, its default): until the response settles into a period-k orbit, at most 12 "
+        "(docs/outputs.md); the ensembles and fit need a number",
         "--revolutions",
         "positive",
+        command_defaults=(("run", "auto"),),
     ),
     Setting(
         "simulation",

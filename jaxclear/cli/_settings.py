@@ -15,8 +15,12 @@ BY_LABEL = {(s.section, s.key): s for s in SETTINGS}
 PER_JOINT = tuple(s for s in SETTINGS if s.per_joint)
 
 
-def format_default(s: Setting) -> str:
-    """The default of ``s`` as shown in ``--help`` and docs/cli.md."""
+def format_default(s: Setting, command: str | None = None) -> str:
+    """The default of ``s`` as shown in ``--help`` of ``command`` and, without one, docs/cli.md
+    (where a command's own default follows in parentheses)."""
+    own = dict(s.command_defaults)
+    if command is not None and command in own:
+        return _format_value(own[command])
     if s.default is None and s.section == "solver":
         by_value: dict[str, list[str]] = {}
         for name, preset in PRESETS.items():
@@ -29,8 +33,12 @@ def format_default(s: Setting) -> str:
     if s.default is None:
         return "see description"
     if isinstance(s.default, Mapping):
-        return ", ".join(f"{name} {_format_value(value)}" for name, value in s.default.items())
-    return _format_value(s.default)
+        text = ", ".join(f"{name} {_format_value(value)}" for name, value in s.default.items())
+    else:
+        text = _format_value(s.default)
+    if s.command_defaults and command is None:  # e.g. "2 (run: auto)"
+        text += " (" + ", ".join(f"{c}: {_format_value(v)}" for c, v in s.command_defaults) + ")"
+    return text
 
 
 def _format_value(value) -> str:
@@ -160,9 +168,10 @@ METAVARS = {
 
 
 def add_setting_arguments(
-    parser: argparse.ArgumentParser, sections: tuple[str, ...] = SECTIONS
+    parser: argparse.ArgumentParser, command: str, sections: tuple[str, ...] = SECTIONS
 ) -> None:
-    """Add a flag for every ``Setting`` of ``sections`` that has one (the shared run options).
+    """Add a flag for every ``Setting`` of ``sections`` that has one (the shared run options),
+    with ``command``'s defaults in the help.
 
     Values land in ``args.<section>__<key>`` (``None`` when not given), read by
     ``_config.resolve_settings``.
@@ -174,7 +183,7 @@ def add_setting_arguments(
         default = (
             ""
             if s.default is None and s.section != "solver"
-            else f" (default: {format_default(s)})"
+            else f" (default: {format_default(s, command)})"
         )
         if s.kind is bool or s.kind == "gravity":
             text = s.flag_help or s.help

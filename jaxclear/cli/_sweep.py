@@ -100,7 +100,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         help="N values evenly spaced from START to STOP (both included)",
     )
     add_chaos_arguments(sw)
-    add_setting_arguments(sw)
+    add_setting_arguments(sw, "sweep")
     add_ensemble_arguments(sw)
     return sw
 
