@@ -29,6 +29,7 @@ from ._impact_memory import (
     memory_rate,
     memory_relaxation,
 )
+from ._outputs import JointOutputs
 
 Index = Callable[[str], "int | None"]
 
@@ -84,7 +85,7 @@ class ContactForces(eqx.Module):
     film_torque: Float[Array, ""] | None = None
 
 
-class ClearanceOutputs(eqx.Module):
+class ClearanceOutputs(JointOutputs):
     """Per-instant outputs of one clearance joint (``Trajectory.clearance[name]``).
 
     Attribute access (``out.normal_force``) and mapping access (``out["normal_force"]``,
@@ -115,34 +116,7 @@ class ClearanceOutputs(eqx.Module):
     film_force_x: Float[Array, "*shape"] | None = None
     film_force_y: Float[Array, "*shape"] | None = None
 
-    def keys(self) -> tuple[str, ...]:
-        """Names of the outputs present (fields that are not ``None``), in field order."""
-        return tuple(name for name in _OUTPUT_NAMES if getattr(self, name) is not None)
-
-    def values(self) -> tuple:
-        return tuple(getattr(self, name) for name in self.keys())
-
-    def items(self) -> tuple[tuple[str, Array], ...]:
-        return tuple((name, getattr(self, name)) for name in self.keys())
-
-    def __getitem__(self, key: str) -> Array:
-        if key not in self.keys():
-            raise KeyError(
-                f"{key!r} is not an output of this clearance joint; outputs: {', '.join(self.keys())}."
-            )
-        return getattr(self, key)
-
-    def __contains__(self, key) -> bool:
-        return key in self.keys()
-
-    def __iter__(self):
-        return iter(self.keys())
-
-    def __len__(self) -> int:
-        return len(self.keys())
-
-
-_OUTPUT_NAMES = tuple(ClearanceOutputs.__dataclass_fields__)
+    kind = "clearance joint"
 
 
 # --- gathering the two bodies' coordinates ----------------------------------------------------------

@@ -19,6 +19,7 @@ from . import _clearance as clearance
 from . import _translational as translational
 from ._constraints import constraint_jacobian, constraints, gamma
 from ._groups import GroupCache, evaluation_groups
+from ._outputs import JointOutputs
 
 
 class Evaluation(eqx.Module):
@@ -248,7 +249,7 @@ def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
 def clearance_outputs(mechanism, evaluation: Evaluation) -> dict:
     """{clearance joint name: ``ClearanceOutputs``} at the instant of ``evaluation``, and for each
     translational clearance joint its ``TranslationalClearanceOutputs``."""
-    out = {
+    out: dict[str, JointOutputs] = {
         c.name: clearance.outputs(
             c, mechanism.index, evaluation.q, evaluation.qd, evaluation.states[c.name]
         )

@@ -16,7 +16,7 @@ long run forks under rounding-level changes).
 """
 
 import abc
-from typing import Any
+from typing import Any, ClassVar
 
 import equinox as eqx
 import jax
@@ -131,37 +131,49 @@ class ForceElementGroup(AbstractEvaluationGroup):
         return {}
 
 
-class ClearanceJointGroup(AbstractEvaluationGroup):
-    """One clearance joint, evaluated by the mechanism-level functions of ``dynamics._clearance``."""
+class _SingleJointGroup(AbstractEvaluationGroup):
+    """One joint evaluated by the mechanism-level functions of a physics module (``physics``:
+    ``initial_state``, ``force_and_cache``, ``state_derivative_cached``,
+    ``stiff_state_derivative``), which the revolute and translational clearance joints share."""
 
-    joint: ClearanceJoint
+    physics: ClassVar[Any]
+    joint: eqx.AbstractVar[Any]
 
     def per_element(self, stacked) -> dict[str, Array]:
         return {self.joint.name: stacked}
 
     def initial_states(self, mechanism, q, qd):
-        return {self.joint.name: clearance.initial_state(self.joint, mechanism.index, q, qd)}
+        return {self.joint.name: self.physics.initial_state(self.joint, mechanism.index, q, qd)}
 
     def force_and_cache(self, mechanism, t, q, qd, states, gamma_h=None):
         c = self.joint
-        force, cache, stage = clearance.force_and_cache(
+        force, cache, stage = self.physics.force_and_cache(
             c, mechanism.index, q, qd, states[c.name], gamma_h
         )
         return force, GroupCache(cache, stage)
 
     def state_rates(self, mechanism, cache, t, q, qd, qdd, states):
         c = self.joint
-        rate = clearance.state_derivative_cached(
+        rate = self.physics.state_derivative_cached(
             c, cache.shared, mechanism.index, q, qd, qdd, states[c.name]
         )
         return {c.name: rate}
 
     def stiff_rates(self, mechanism, t, q, qd, states):
         c = self.joint
-        return {c.name: clearance.stiff_state_derivative(c, mechanism.index, q, qd, states[c.name])}
+        return {
+            c.name: self.physics.stiff_state_derivative(c, mechanism.index, q, qd, states[c.name])
+        }
 
     def contacts(self, cache):
         return {self.joint.name: cache.shared}
+
+
+class ClearanceJointGroup(_SingleJointGroup):
+    """One clearance joint, evaluated by the mechanism-level functions of ``dynamics._clearance``."""
+
+    physics: ClassVar[Any] = clearance
+    joint: ClearanceJoint
 
 
 class BatchedClearanceJoints(AbstractEvaluationGroup):
@@ -194,43 +206,15 @@ class BatchedClearanceJoints(AbstractEvaluationGroup):
         }
 
 
-class TranslationalClearanceGroup(AbstractEvaluationGroup):
+class TranslationalClearanceGroup(_SingleJointGroup):
     """One translational clearance joint, evaluated by ``dynamics._translational``.
 
     Its ``contacts`` entry holds per-corner arrays (4,): ``CornerKinematics.penetration`` and
     ``CornerForces.normal_force``.
     """
 
+    physics: ClassVar[Any] = translational
     joint: TranslationalClearanceJoint
-
-    def per_element(self, stacked) -> dict[str, Array]:
-        return {self.joint.name: stacked}
-
-    def initial_states(self, mechanism, q, qd):
-        return {self.joint.name: translational.initial_state(self.joint, mechanism.index, q, qd)}
-
-    def force_and_cache(self, mechanism, t, q, qd, states, gamma_h=None):
-        c = self.joint
-        force, cache, stage = translational.force_and_cache(
-            c, mechanism.index, q, qd, states[c.name], gamma_h
-        )
-        return force, GroupCache(cache, stage)
-
-    def state_rates(self, mechanism, cache, t, q, qd, qdd, states):
-        c = self.joint
-        rate = translational.state_derivative_cached(
-            c, cache.shared, mechanism.index, q, qd, qdd, states[c.name]
-        )
-        return {c.name: rate}
-
-    def stiff_rates(self, mechanism, t, q, qd, states):
-        c = self.joint
-        return {
-            c.name: translational.stiff_state_derivative(c, mechanism.index, q, qd, states[c.name])
-        }
-
-    def contacts(self, cache):
-        return {self.joint.name: cache.shared}
 
 
 def evaluation_groups(mechanism) -> tuple[AbstractEvaluationGroup, ...]:

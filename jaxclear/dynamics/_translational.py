@@ -25,6 +25,7 @@ from ..model._translational_clearance import CORNER_NAMES, TranslationalClearanc
 from . import _translational_geometry as geometry
 from ._clearance import solve_affine
 from ._impact_memory import freeze_weight, impact_velocity, memory, memory_relaxation
+from ._outputs import JointOutputs
 
 Index = Callable[[str], "int | None"]
 
@@ -64,7 +65,7 @@ class CornerForces(eqx.Module):
     force_on_slider: Float[Array, "4 2"]
 
 
-class TranslationalClearanceOutputs(eqx.Module):
+class TranslationalClearanceOutputs(JointOutputs):
     """Per-instant outputs of one translational clearance joint (``Trajectory.clearance[name]``).
 
     Mapping access as ``ClearanceOutputs`` (``out["tilt"]``, ``out.keys()``). Per-corner outputs
@@ -94,35 +95,8 @@ class TranslationalClearanceOutputs(eqx.Module):
     corner_impact_velocity: Float[Array, "*shape 4"]
     corner_friction_state: Float[Array, "*shape 4"] | None = None
 
-    def keys(self) -> tuple[str, ...]:
-        """Names of the outputs present, in field order."""
-        return tuple(name for name in _OUTPUT_NAMES if getattr(self, name) is not None)
+    kind = "translational clearance joint"
 
-    def values(self) -> tuple:
-        return tuple(getattr(self, name) for name in self.keys())
-
-    def items(self) -> tuple[tuple[str, Array], ...]:
-        return tuple((name, getattr(self, name)) for name in self.keys())
-
-    def __getitem__(self, key: str) -> Array:
-        if key not in self.keys():
-            raise KeyError(
-                f"{key!r} is not an output of this translational clearance joint; outputs: "
-                f"{', '.join(self.keys())}."
-            )
-        return getattr(self, key)
-
-    def __contains__(self, key) -> bool:
-        return key in self.keys()
-
-    def __iter__(self):
-        return iter(self.keys())
-
-    def __len__(self) -> int:
-        return len(self.keys())
-
-
-_OUTPUT_NAMES = tuple(TranslationalClearanceOutputs.__dataclass_fields__)
 
 CORNERS = len(CORNER_NAMES)
 
