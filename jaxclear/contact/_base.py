@@ -15,10 +15,13 @@ penetration 0, eccentricity 0 and zero rates.
 """
 
 import abc
+import dataclasses
 
 import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
+
+from .._core._checks import check_positive
 
 
 def _array(x):
@@ -43,6 +46,11 @@ class Smoothing(eqx.Module):
     memory_rate: Float[Array, ""] = eqx.field(converter=_array, default=1e6)
     min_impact_velocity: Float[Array, ""] = eqx.field(converter=_array, default=1e-4)
     force_width: Float[Array, ""] = eqx.field(converter=_array, default=1e-3)
+
+    def check(self, owner: str) -> None:
+        """Raise ``ModelError`` naming ``owner`` and the width unless every width is positive."""
+        for f in dataclasses.fields(self):
+            check_positive(owner, f"smoothing.{f.name}", getattr(self, f.name))
 
 
 class ContactGeometry(eqx.Module):

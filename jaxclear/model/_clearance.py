@@ -106,16 +106,7 @@ class ClearanceJoint(AbstractStateElement):
                     f"{owner}: journal_radius ({float(g.journal_radius)} m) must be smaller than bearing_radius "
                     f"({float(g.bearing_radius)} m); the clearance c = R_B - R_J must be positive."
                 )
-        s = self.smoothing
-        for attr in (
-            "penetration_width",
-            "velocity_width",
-            "memory_width",
-            "memory_rate",
-            "min_impact_velocity",
-            "force_width",
-        ):
-            check_positive(owner, f"smoothing.{attr}", getattr(s, attr))
+        self.smoothing.check(owner)
         if not isinstance(self.contact_law, AbstractContactLaw):
             raise TypeError(
                 f"{owner}: contact_law must be an AbstractContactLaw, got {type(self.contact_law).__name__}."

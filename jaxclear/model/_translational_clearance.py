@@ -143,16 +143,7 @@ class TranslationalClearanceJoint(AbstractStateElement):
                     f"{owner}: initial_offset {float(self.initial_offset)} m lies outside the guide "
                     f"(|offset| <= c = {room} m)."
                 )
-        s = self.smoothing
-        for attr in (
-            "penetration_width",
-            "velocity_width",
-            "memory_width",
-            "memory_rate",
-            "min_impact_velocity",
-            "force_width",
-        ):
-            check_positive(owner, f"smoothing.{attr}", getattr(s, attr))
+        self.smoothing.check(owner)
         if not isinstance(self.contact_law, CORNER_LAWS):
             raise ModelError(
                 f"{owner}: contact_law {type(self.contact_law).__name__} does not apply to a corner on "

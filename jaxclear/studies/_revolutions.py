@@ -454,17 +454,7 @@ def simulate_revolutions(
     for k, span in enumerate(spans):
         end = start + span * period
         points = segment_points(span, points_per_revolution)
-        traj = simulate(
-            mechanism,
-            end,
-            t0=start,
-            num_points=points,
-            solver=config,
-            y0=state,
-            statistics_start=start if t_keep is None else max(start, t_keep),
-            contact_events=contact_events,
-            throw=False,
-        )
+        traj = _revolution(state, mechanism, start, end, points, config, contact_events, t_keep)
         parts.append(traj)
         if others is not None:
             batch = _companion_revolution(
@@ -520,23 +510,27 @@ def simulate_revolutions(
     )
 
 
+def _revolution(y0, mechanism, start, end, points, config, contact_events, t_keep) -> Trajectory:
+    """One revolution (or the last part of one) from state ``y0``: a ``simulate`` over
+    [start, end] whose statistics start at ``t_keep`` if later."""
+    return simulate(
+        mechanism,
+        end,
+        t0=start,
+        num_points=points,
+        solver=config,
+        y0=y0,
+        statistics_start=start if t_keep is None else max(start, t_keep),
+        contact_events=contact_events,
+        throw=False,
+    )
+
+
 def _companion_revolution(mechanism, states, start, end, points, config, contact_events, t_keep):
-    """One revolution of the companions: ``simulate`` vmapped over their initial states."""
-
-    def one(y):
-        return simulate(
-            mechanism,
-            end,
-            t0=start,
-            num_points=points,
-            solver=config,
-            y0=y,
-            statistics_start=start if t_keep is None else max(start, t_keep),
-            contact_events=contact_events,
-            throw=False,
-        )
-
-    return eqx.filter_vmap(one)(states)
+    """One revolution of the companions: ``_revolution`` vmapped over their initial states."""
+    return eqx.filter_vmap(
+        lambda y: _revolution(y, mechanism, start, end, points, config, contact_events, t_keep)
+    )(states)
 
 
 def _is_whole(traj: Trajectory, period: float) -> bool:
