@@ -636,3 +636,30 @@ def test_ideal_mechanism_restores_the_ideal_guide():
         np.asarray(jaxclear.assemble(slider_crank())),
         atol=1e-12,
     )
+
+
+@pytest.mark.slow
+def test_montecarlo_over_the_guide_clearance(tmp_path, capsys):
+    """``jaxclear montecarlo`` draws the guide clearance of the example: every member succeeds,
+    the drawn values lie in the distribution's range, and each member's contact modes (the joint
+    as a whole, located from the solver's steps) add up over the window."""
+    config = tmp_path / "guide.toml"
+    config.write_text(
+        EXAMPLE.read_text()
+        + '\n[montecarlo]\n"slider_guide.clearance" = '
+        + '{ distribution = "uniform", low = 0.8e-3, high = 1.2e-3 }\n'
+    )
+    out = tmp_path / "mc"
+    argv = ["montecarlo", str(config), "--samples", "2", "--revolutions", "0.25"]
+    argv += ["--no-plots", "--no-progress", "--devices", "1", "--out", str(out)]
+    assert cli.main(argv) == 0
+    lines = (out / "samples.csv").read_text().splitlines()
+    rows = [dict(zip(lines[0].split(","), line.split(","))) for line in lines[1:]]
+    assert len(rows) == 2 and all(r["status"] == "ok" for r in rows)
+    for r in rows:
+        assert 0.8e-3 <= float(r["slider_guide.clearance"]) <= 1.2e-3
+        assert float(r["contact_modes_located"]) == 1.0
+        shares = [float(r[f"slider_guide_{m}_share"]) for m in ("free", "impact", "continuous")]
+        assert sum(shares) == pytest.approx(1.0) and shares[0] < 1.0  # the slider lands
+        pairs = [float(r[f"slider_guide.{p}_peak_normal_force"]) for p in ("upper", "lower")]
+        assert float(r["slider_guide_peak_normal_force"]) == max(pairs) > 0.0
