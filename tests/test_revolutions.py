@@ -5,6 +5,7 @@ import dataclasses
 import json
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ import pytest
 from jaxclear import cli
 from jaxclear.mechanisms import slider_crank
 from jaxclear.solve import combine_extremes, join_trajectories
-from jaxclear.studies import simulate_revolutions, steady_state
+from jaxclear.studies import compile_revolutions, simulate_revolutions, steady_state
 
 MONTECARLO_EXAMPLE = Path(__file__).parents[1] / "examples" / "montecarlo_h7g6.toml"
 IDEAL_TORQUE = (
@@ -138,8 +139,24 @@ def test_join_refuses_nothing():
 
 def test_companions_perturbed_at_rounding_level_leave_a_periodic_run_steady():
     """``companions``: K solves in one batch from the initial state perturbed by ~1e-12 relative;
-    the ideal (periodic) mechanism's medians do not move, so nothing is marked sensitive."""
-    run = simulate_revolutions(slider_crank(), 2, points_per_revolution=90, skip=0, companions=2)
+    the ideal (periodic) mechanism's medians do not move, so nothing is marked sensitive.
+    ``compile_revolutions`` compiles both solves beforehand: the run then compiles no solve again
+    (only kernels of a few ms for joining and statistics; a solve takes seconds)."""
+    compile_revolutions(slider_crank(), points_per_revolution=90, companions=2)
+    compiles = []
+
+    def listener(event, duration, **kwargs):
+        if event == "/jax/core/compile/backend_compile_duration":
+            compiles.append(duration)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
+    try:
+        run = simulate_revolutions(
+            slider_crank(), 2, points_per_revolution=90, skip=0, companions=2
+        )
+    finally:
+        jax.monitoring.unregister_event_duration_listener(listener)
+    assert not [d for d in compiles if d > 0.5], compiles
     batch = run.companion_revolutions
     assert len(batch) == 2 and np.asarray(batch[0].t_final).shape == (2,)
     start = np.asarray(batch[0].q[:, 0])  # (K, n): the companions' first saved instants

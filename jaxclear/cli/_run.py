@@ -33,12 +33,11 @@ from ..io import (
 )
 from ..mechanisms import is_slider_crank
 from ..solve import finite_rows, ideal_mechanism, wall_start, window
-from ..studies import simulate_revolutions
+from ..studies import compile_revolutions, simulate_revolutions
 from ..studies._revolutions import (
     COMPANION_PERTURBATION,
     MAX_REVOLUTIONS,
     SENSITIVE_SPREAD,
-    segment_points,
 )
 from ._common import (
     PROG,
@@ -184,28 +183,24 @@ def timed_revolutions(
     """Simulate revolution by revolution (``jaxclear.studies.simulate_revolutions``), timing
     compilation and the run separately.
 
-    A warm-up call over ``WARMUP_FRACTION`` of a revolution, with a revolution's number of output
-    points and the same solver settings, triggers the one compilation (start and end times are
-    traced values, so every revolution reuses the compiled code); its wall time is
-    ``compile_time_s``. The revolutions are then timed together as ``run_time_s`` (a fractional
+    A warm-up over ``WARMUP_FRACTION`` of a revolution (``studies.compile_revolutions``), with a
+    revolution's number of output points and the same solver settings, triggers the compilations
+    of the nominal solve and of the companions' batch (start and end times are traced values, so
+    every revolution reuses the compiled code); its wall time is ``compile_time_s``. The revolutions are then timed together as ``run_time_s`` (a fractional
     last revolution compiles a second program, inside that time).
     """
     simulation = settings.config["simulation"]
-    period = 60.0 / settings.config["mechanism"]["rpm"]
     per_revolution = int(simulation["points_per_revolution"])
     revolutions = simulation["revolutions"]
     start = time.perf_counter()
-    _block(
-        jaxclear.simulate(
-            mechanism,
-            period * WARMUP_FRACTION,
-            num_points=segment_points(
-                1.0 if revolutions == AUTO else min(float(revolutions), 1.0), per_revolution
-            ),
-            solver=solver,
-            throw=False,
-            contact_events=contact_events,
-        )
+    compile_revolutions(
+        mechanism,
+        span=1.0 if revolutions == AUTO else min(float(revolutions), 1.0),
+        points_per_revolution=per_revolution,
+        solver=solver,
+        contact_events=contact_events,
+        companions=companions,
+        fraction=WARMUP_FRACTION,
     )
     compile_time = time.perf_counter() - start
     start = time.perf_counter()

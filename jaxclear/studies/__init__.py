@@ -49,6 +49,7 @@ from ._poincare import poincare_section as poincare_section
 from ._poincare import section_times as section_times
 from ._revolutions import RevolutionRun as RevolutionRun
 from ._revolutions import SteadyState as SteadyState
+from ._revolutions import compile_revolutions as compile_revolutions
 from ._revolutions import return_coordinates as return_coordinates
 from ._revolutions import simulate_revolutions as simulate_revolutions
 from ._revolutions import steady_state as steady_state

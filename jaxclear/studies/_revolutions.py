@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -508,6 +509,37 @@ def simulate_revolutions(
         statistics_start=float(parts[kept[0]].t[0]) if t_keep is None else float(t_keep),
         companion_revolutions=companion_parts[: len(parts)] or None,
     )
+
+
+def compile_revolutions(
+    mechanism: Mechanism,
+    *,
+    span: float = 1.0,
+    points_per_revolution: int = 360,
+    solver="auto",
+    t0: float = 0.0,
+    contact_events: int = 0,
+    companions: int = 0,
+    fraction: float = 1e-3,
+) -> None:
+    """Compile what ``simulate_revolutions`` runs per revolution of ``span`` revolutions (1: a
+    whole one; less: a run shorter than a revolution), for the nominal run and for ``companions``
+    companions in their vectorised batch, by solving ``fraction`` of a revolution with the same
+    output shapes and settings (start and end times are traced values, so the revolutions reuse
+    the programs). Lets a caller time compilation apart from the run (``jaxclear run``'s
+    ``compile`` and ``run``)."""
+    period = crank_period(mechanism)
+    if period is None:
+        raise ValueError("compile_revolutions needs a constant-speed driver (a crank period).")
+    config = solver_config(solver, mechanism)
+    state = assemble(mechanism, t0)
+    points = segment_points(span, points_per_revolution)
+    end = t0 + fraction * period
+    args = (mechanism, t0, end, points, config, contact_events, None)
+    jax.block_until_ready(_revolution(state, *args).y_final)
+    if companions:
+        states = jnp.broadcast_to(state, (int(companions), state.shape[0]))
+        jax.block_until_ready(_companion_revolution(args[0], states, *args[1:]).y_final)
 
 
 def _revolution(y0, mechanism, start, end, points, config, contact_events, t_keep) -> Trajectory:
