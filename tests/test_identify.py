@@ -235,6 +235,8 @@ def test_noise_level_bound():
         ("max_iterations", True, "max_iterations must be"),
         ("tolerance", -1e-6, "tolerance must be"),
         ("tolerance", float("nan"), "tolerance must be"),
+        ("scan_rtol", 0.0, "scan_rtol must be"),
+        ("scan_rtol", 1.5, "scan_rtol must be"),
     ],
 )
 def test_fit_settings_are_checked(field, value, match):
@@ -250,6 +252,7 @@ def test_fit_settings_defaults():
     assert jaxclear.FitSettings().horizons is None  # from the first contacts
     assert jaxclear.FitSettings().scan_budget(1) == 256
     assert jaxclear.FitSettings(scan_points=40, max_scan_points=8).scan_budget(1) == 40
+    assert jaxclear.FitSettings().scan_rtol == 1e-6  # the scan ranks points at ordinary settings
 
 
 # --- bad input: one line, exit 2, nothing written ------------------------------------------------

@@ -20,6 +20,7 @@ from ._common import (
     PROG,
     RunError,
     UsageError,
+    apply_compilation_cache,
     apply_fast_compile,
     one_line,
 )
@@ -263,6 +264,7 @@ def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
     apply_fast_compile(config["solver"]["fast_compile"])
+    compilation_cache = apply_compilation_cache(config["solver"]["compilation_cache"])
     parameters = parse_fit_parameters(args.fit_parameters)
     noise = _noise(args.noise)
     columns = None
@@ -357,6 +359,7 @@ def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         **summary,
         "versions": package_versions(),
         "jax_backend": jax.default_backend(),
+        "compilation_cache": compilation_cache,
         "files": [FIT_JSON, FIT_CSV, "fit.png", "loss.png"],
     }
     try:

@@ -73,6 +73,7 @@ from ._engine import EnsembleSettings, chunk_rows, map_members
 from ._fit_settings import (
     INFORMATIVE_SPREAD,
     LOSS_GROWTH,
+    SCAN_ATOL_FACTOR,
     SCAN_CHUNK,
     TIED_SHARE,
     Estimate,
@@ -388,6 +389,11 @@ def _global_scan(windows: _Windows, specs, settings: FitSettings, bar: Progress,
         return _Scan([u0], 0, True, {})
     design = Design(specs, count)
     chunks = EnsembleSettings(chunk_size=SCAN_CHUNK)
+    if settings.scan_rtol is not None:  # the scan ranks points: an ordinary tolerance will do
+        mechanism, space, names, config = windows.static
+        rtol = settings.scan_rtol
+        scan_config = config.replace(rtol=rtol, atol=rtol * SCAN_ATOL_FACTOR)
+        windows = dataclasses.replace(windows, static=(mechanism, space, names, scan_config))
 
     def evaluate(units, k, with_start):
         values = design.to_values(units)
