@@ -2,6 +2,8 @@
 (Lawson, IMEX), extremes tracked in the solve, start-up helpers and the ``Trajectory`` result."""
 
 from ._extremes import combine_extremes as combine_extremes
+from ._lanes import MemberSolutions as MemberSolutions
+from ._lanes import solve_members as solve_members
 from ._simulate import assemble as assemble
 from ._simulate import failure_error as failure_error
 from ._simulate import simulate as simulate
