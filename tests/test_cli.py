@@ -524,8 +524,7 @@ def test_simulation_failure_exits_1(tmp_path, capsys, monkeypatch):
             "simulation failed at t = 0.001 s after 3 steps.\nSuggested fix: raise max_steps."
         )
 
-    # the run's first solve: the warm-up that compiles the revolution (studies.compile_revolutions)
-    monkeypatch.setattr(jaxclear.cli._run, "compile_revolutions", failing)
+    monkeypatch.setattr(jaxclear, "simulate", failing)
     with pytest.raises(SystemExit) as exc:
         cli.main(["run", *SHORT, "--start", "centred", "--out", str(tmp_path / "out")])
     assert exc.value.code == 1

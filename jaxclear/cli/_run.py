@@ -38,6 +38,7 @@ from ..studies._revolutions import (
     COMPANION_PERTURBATION,
     MAX_REVOLUTIONS,
     SENSITIVE_SPREAD,
+    segment_points,
 )
 from ._common import (
     PROG,
@@ -192,16 +193,28 @@ def timed_revolutions(
     simulation = settings.config["simulation"]
     per_revolution = int(simulation["points_per_revolution"])
     revolutions = simulation["revolutions"]
+    span = 1.0 if revolutions == AUTO else min(float(revolutions), 1.0)
     start = time.perf_counter()
-    compile_revolutions(
-        mechanism,
-        span=1.0 if revolutions == AUTO else min(float(revolutions), 1.0),
-        points_per_revolution=per_revolution,
-        solver=solver,
-        contact_events=contact_events,
-        companions=companions,
-        fraction=WARMUP_FRACTION,
+    _block(
+        jaxclear.simulate(
+            mechanism,
+            60.0 / settings.config["mechanism"]["rpm"] * WARMUP_FRACTION,
+            num_points=segment_points(span, per_revolution),
+            solver=solver,
+            throw=False,
+            contact_events=contact_events,
+        )
     )
+    if companions:  # their vectorised batch too, so that 'run' times the run alone
+        compile_revolutions(
+            mechanism,
+            span=span,
+            points_per_revolution=per_revolution,
+            solver=solver,
+            contact_events=contact_events,
+            companions=companions,
+            fraction=WARMUP_FRACTION,
+        )
     compile_time = time.perf_counter() - start
     start = time.perf_counter()
     total = MAX_REVOLUTIONS if revolutions == AUTO else math.ceil(revolutions)
