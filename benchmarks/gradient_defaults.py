@@ -2,7 +2,7 @@
 
 Usage:
     python benchmarks/gradient_defaults.py [--windows 0.3,0.5,1,2,3] [--repeats 3]
-        [--parameters 1,4,16] [--no-discrete] [--no-cost]
+        [--parameters 1,4,16] [--no-discrete] [--no-cost] [--no-accuracy]
 
 The case of issue 22: the benchmark slider–crank at 5000 rpm with one clearance joint B
 (Lankarani–Nikravesh contact, restitution 0.9, modified Coulomb μ = 0.01, gravity on), journal
@@ -144,6 +144,9 @@ def main():
     parser.add_argument("--parameters", default="1,4,16")
     parser.add_argument("--no-discrete", action="store_true")
     parser.add_argument("--no-cost", action="store_true")
+    parser.add_argument(
+        "--no-accuracy", action="store_true", help="the cost over the longest window only"
+    )
     args = parser.parse_args()
     commit = subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
@@ -154,7 +157,8 @@ def main():
         f"{' (uncommitted changes)' if dirty.strip() else ''}"
     )
     windows = [float(w) for w in args.windows.split(",")]
-    accuracy(windows, not args.no_discrete)
+    if not args.no_accuracy:
+        accuracy(windows, not args.no_discrete)
     if not args.no_cost:
         cost(max(windows), [int(p) for p in args.parameters.split(",")], args.repeats)
 

@@ -90,6 +90,25 @@ def test_default_settings_give_the_solution_derivative(derivatives, window):
     assert abs(reverse[0] - fine[0]) <= STATE_RTOL * abs(fine[0])
 
 
+def test_transformation_outside_a_jit(derivatives):
+    """``jax.jacfwd(jax.jit(f))``: the jit hides the forward-mode tracers from simulate, whose
+    ``adjoint="auto"`` then takes a rule that serves both modes (the sensitivities along every
+    perturbed scalar, contracted with the tangents). Before, JAX refused: "can't apply
+    forward-mode autodiff (jvp) to a custom_vjp function". It runs the reverse mode's augmented
+    solve, so it equals ``jax.jit(jax.jacrev(f))``."""
+    c, t1 = jnp.asarray(CLEARANCE), jnp.asarray(WINDOWS[0])
+    outside = np.asarray(jax.jacfwd(jax.jit(_response), argnums=0)(c, t1))
+    np.testing.assert_allclose(outside, np.asarray(derivatives["reverse"](c, t1)), rtol=1e-9)
+
+
+@pytest.mark.slow  # one more compilation (~20 s)
+def test_gradient_outside_a_jit(derivatives):
+    """``jax.grad(jax.jit(f))`` through the same rule: JAX transposes its contraction."""
+    c, t1 = jnp.asarray(CLEARANCE), jnp.asarray(WINDOWS[0])
+    grad = jax.grad(jax.jit(lambda c: _response(c, t1)[0]))(c)
+    np.testing.assert_allclose(grad, np.asarray(derivatives["reverse"](c, t1))[0], rtol=1e-9)
+
+
 def test_no_recompile_for_new_values(derivatives):
     d = derivatives
     d["forward"](jnp.asarray(CLEARANCE), jnp.asarray(WINDOWS[0])).block_until_ready()

@@ -446,10 +446,9 @@ def test_one_joint_jvp_unchanged(one_joint_derivatives, one_joint_y0):
 
 @pytest.mark.slow  # traces a whole solve (~30 s) for a message
 def test_jvp_with_reverse_adjoint_names_the_forward_option(one_joint_y0):
-    """jax.jvp through simulate(adjoint="reverse"): the error says what to pass. (A jvp applied
-    outside a jax.jit of the caller cannot be seen by simulate at all; JAX then reports "can't
-    apply forward-mode autodiff (jvp) to a custom_vjp function", and the docstring of simulate's
-    ``adjoint`` says to pass "forward".)"""
+    """jax.jvp through simulate(adjoint="reverse"): the error says what to pass. (With the default
+    "auto", a jvp applied outside a jax.jit of the caller goes through a rule that serves both
+    modes: tests/test_sensitivity.py, ``test_transformation_outside_a_jit``.)"""
 
     def slider_x(c):
         mechanism = _one_joint({**ONE_JOINT, "clearance": c})

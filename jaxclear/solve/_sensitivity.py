@@ -9,8 +9,9 @@ of forward sensitivity analysis, SUNDIALS CVODES ``CV_SIMULTANEOUS``),
 
     ẏ = f(t, y, θ),    Ṡ_k = ∂f/∂y S_k + ∂f/∂θ V_k,    S_k(t0) = dy0/dθ V_k,
 
-with the Jacobian products taken inside the vector field (``jax.linearize``, then one
-vectorised product per direction), by the same solver and tableau as the state, and the
+with the Jacobian products taken inside the vector field (one ``jax.jvp`` for p = 1, else
+``jax.linearize`` and one vectorised product for the p directions; along y and the perturbed
+parameter leaves only), by the same solver and tableau as the state, and the
 step-size controller's norm covering the tangents as CVODES does with ``errconS``: the error
 is max(‖e_y‖, max_k ‖e_S_k‖) in the weighted RMS norm, each tangent weighted with
 rtol·|S_k| + atol·ρ_k, where ρ_k = max_i |V_k,i| / |θ_i| is the direction's size relative to the
@@ -65,12 +66,52 @@ def _partition(tree):
     return eqx.partition(tree, eqx.is_inexact_array)
 
 
-def _tangents(fn, mechanism, y, S, V):
-    """``fn(y, mechanism)`` and its tangents (p, ...) along (S_k, V_k): one linearisation, then one
-    vectorised product for the p directions."""
+def _perturbed(mechanism, directions):
+    """The mechanism's inexact leaves that ``directions`` perturbs (a direction that is not
+    ``None``), their directions (leading axis p) and ``rebuild(leaves) -> mechanism``: the
+    linearisations run along these leaves only (an unperturbed leaf has a zero tangent, which
+    would otherwise be carried through every product)."""
     dynamic, static = _partition(mechanism)
-    out, linear = jax.linearize(lambda y, d: fn(y, eqx.combine(d, static)), y, dynamic)
-    return out, jax.vmap(linear)(S, V)
+    leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+    given = treedef.flatten_up_to(directions)
+    chosen = [i for i, v in enumerate(given) if v is not None]
+
+    def rebuild(values):
+        new = list(leaves)
+        for i, value in zip(chosen, values):
+            new[i] = value
+        return eqx.combine(jax.tree_util.tree_unflatten(treedef, new), static)
+
+    return [leaves[i] for i in chosen], [given[i] for i in chosen], rebuild
+
+
+def _push_with_aux(fn, primals, tangents):
+    """``fn(*primals) = (out, aux)``: out, its tangents along p directions (``tangents``: like
+    ``primals``, each leaf with a leading axis p) and aux. One ``jax.jvp`` for p = 1, else one
+    linearisation and a vectorised product."""
+    if _num_directions(tangents) == 1:  # no vectorised map over a single direction
+        first = jax.tree_util.tree_map(lambda x: x[0], tangents)
+        out, dout, aux = jax.jvp(fn, primals, first, has_aux=True)
+        return out, jax.tree_util.tree_map(lambda x: x[None], dout), aux
+    out, linear, aux = jax.linearize(fn, *primals, has_aux=True)
+    return out, jax.vmap(linear)(*tangents), aux
+
+
+def _push(fn, primals, tangents):
+    """``fn(*primals)`` and its tangents along p directions (``_push_with_aux``)."""
+    out, dout, _ = _push_with_aux(lambda *a: (fn(*a), None), primals, tangents)
+    return out, dout
+
+
+def _num_directions(tangents) -> int:
+    return jax.tree_util.tree_leaves(tangents)[0].shape[0]
+
+
+def _tangents(fn, mechanism, y, S, V):
+    """``fn(y, mechanism)`` and its tangents (p, ...) along (S_k, V_k), linearised along y and the
+    perturbed leaves only (``V``: directions, ``None`` for an unperturbed leaf)."""
+    theta, dtheta, rebuild = _perturbed(mechanism, V)
+    return _push(lambda y, theta: fn(y, rebuild(theta)), (y, theta), (S, dtheta))
 
 
 def _split(Y, size):
@@ -83,7 +124,8 @@ def _join(y, S):
 
 class Augmented(eqx.Module):
     """``args`` of the augmented solve: the mechanism and the p parameter directions V (a pytree
-    like the mechanism's inexact leaves, each with a leading axis p)."""
+    like the mechanism's inexact leaves, each with a leading axis p; ``None`` for a leaf that no
+    direction perturbs)."""
 
     mechanism: eqx.Module
     directions: object
@@ -143,28 +185,42 @@ class TangentTracking(AbstractWrappingSolver):
     size: int = eqx.field(static=True)
     max_events: int = eqx.field(static=True, default=0)
 
-    def _observe(self, t, Y, args):
-        y, S = _split(Y, self.size)
-        return _tangents(lambda y, m: observe(t, y, m), args.mechanism, y, S, args.directions)
+    def _observe(self, ts, Ys, args):
+        """The observations at the instants ``ts`` (k,) of the states ``Ys`` (k, (p + 1) N) in one
+        vectorised evaluation (as ``ExtremesTracking`` does), and their tangents (p, k, ...)."""
+        size = self.size
+        ys = Ys[:, :size]
+        Ss = jnp.moveaxis(jnp.reshape(Ys[:, size:], (Ys.shape[0], -1, size)), 1, 0)
+        theta, dtheta, rebuild = _perturbed(args.mechanism, args.directions)
+
+        def both(ys, theta):
+            m = rebuild(theta)
+            return jax.vmap(lambda t, y: observe(t, y, m))(ts, ys)
+
+        return _push(both, (ys, theta), (Ss, dtheta))
 
     def init(self, terms, t0, t1, y0, args):
-        obs, dobs = self._observe(t0, y0, args)
-        floats, linear, rest = jax.linearize(
+        obs, dobs = self._observe(jnp.reshape(jnp.asarray(t0, dtype=float), (1,)), y0[None], args)
+        take = lambda tree, i: jax.tree_util.tree_map(lambda x: x[i], tree)  # noqa: E731
+        obs, dobs = take(obs, 0), jax.tree_util.tree_map(lambda x: x[:, 0], dobs)
+        floats, dfloats, rest = _push_with_aux(
             lambda o: _partition(Tracker.first(self.start, t0, o, self.max_events)),
-            obs,
-            has_aux=True,
+            (obs,),
+            (dobs,),
         )
         tracker = eqx.combine(floats, rest)
-        return self.solver.init(terms, t0, t1, y0, args), (tracker, jax.vmap(linear)(dobs))
+        return self.solver.init(terms, t0, t1, y0, args), (tracker, dfloats)
 
     @staticmethod
     def _update(tracker, dtracker, t, obs, dobs):
         """The tracker after a sample, and its tangents (the linearised update)."""
         floats, rest = _partition(tracker)
-        new_floats, linear, new_rest = jax.linearize(
-            lambda f, o: _partition(eqx.combine(f, rest).update(t, o)), floats, obs, has_aux=True
+        new_floats, dfloats, new_rest = _push_with_aux(
+            lambda f, o: _partition(eqx.combine(f, rest).update(t, o)),
+            (floats, obs),
+            (dtracker, dobs),
         )
-        return eqx.combine(new_floats, new_rest), jax.vmap(linear)(dtracker, dobs)
+        return eqx.combine(new_floats, new_rest), dfloats
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         inner, (tracker, dtracker) = solver_state
@@ -173,13 +229,16 @@ class TangentTracking(AbstractWrappingSolver):
         )
         t_mid = 0.5 * (t0 + t1)
         y_mid = self.solver.interpolation_cls(t0=t0, t1=t1, **dense_info).evaluate(t_mid)
-        for t, Y in ((t_mid, y_mid), (t1, y1)):
-            obs, dobs = self._observe(t, Y, args)
-            tracker, dtracker = self._update(tracker, dtracker, t, obs, dobs)
+        times = jnp.stack([jnp.asarray(t_mid, dtype=float), jnp.asarray(t1, dtype=float)])
+        obs, dobs = self._observe(times, jnp.stack([y_mid, y1]), args)
+        for i, t in enumerate((t_mid, t1)):
+            sample = jax.tree_util.tree_map(lambda x, i=i: x[i], obs)
+            dsample = jax.tree_util.tree_map(lambda x, i=i: x[:, i], dobs)
+            tracker, dtracker = self._update(tracker, dtracker, t, sample, dsample)
         return y1, y_error, dense_info, (inner, (tracker, dtracker)), result
 
 
-def _direction_scales(dynamic, y0, V, dy0):
+def _direction_scales(mechanism, y0, V, dy0):
     """ρ_k = max_i |V_k,i| / |θ_i| over the parameters and the initial state (|θ_i| = 1 where
     θ_i = 0), 1 for a zero direction: the tangents' absolute tolerance is atol·ρ_k."""
 
@@ -187,25 +246,22 @@ def _direction_scales(dynamic, y0, V, dy0):
         nominal = jnp.where(theta == 0, 1.0, jnp.abs(theta))
         return jnp.max(jnp.reshape(jnp.abs(v) / nominal[None], (v.shape[0], -1)), axis=1)
 
-    parts = [
-        ratio(t, v)
-        for t, v in zip(jax.tree_util.tree_leaves(dynamic), jax.tree_util.tree_leaves(V))
-    ]
+    theta, dtheta, _ = _perturbed(mechanism, V)
+    parts = [ratio(t, v) for t, v in zip(theta, dtheta)]
     if y0 is not None and dy0 is not None:
         parts.append(ratio(y0, dy0))
     rho = jnp.max(jnp.stack(parts), axis=0) if parts else jnp.ones((1,))
     return jnp.where(rho > 0, rho, 1.0)
 
 
-def _relabel(directions, mechanism):
-    """``directions`` (made for ``mechanism``'s inexact leaves) on another mechanism with the same
+def _relabel(directions, source, target):
+    """``directions`` (made for ``source``'s inexact leaves) on ``target``, a mechanism with the same
     leaves but other static fields (``with_memory_offset``)."""
-    dynamic, _ = _partition(mechanism)
-    leaves = jax.tree_util.tree_leaves(directions)
-    treedef = jax.tree_util.tree_structure(dynamic)
-    if treedef.num_leaves != len(leaves):
+    given = jax.tree_util.tree_structure(_partition(source)[0]).flatten_up_to(directions)
+    treedef = jax.tree_util.tree_structure(_partition(target)[0])
+    if treedef.num_leaves != len(given):
         raise AssertionError("the offset mechanism has other leaves than the mechanism")
-    return jax.tree_util.tree_unflatten(treedef, leaves)
+    return jax.tree_util.tree_unflatten(treedef, given)
 
 
 def sensitivity_core(
@@ -227,35 +283,31 @@ def sensitivity_core(
     Args:
         mechanism, ts, t0, t1, y0, stats_start, config, progress, track_extremes, max_events: as
             in ``_simulate._simulate_core`` (``y0`` ``None``: assembled, and differentiated).
-        directions: tangents of the mechanism's inexact leaves, each with a leading axis p.
+        directions: tangents of the mechanism's inexact leaves, each with a leading axis p
+            (``None`` for a leaf that no direction perturbs: it is not linearised).
         dy0: tangents of ``y0`` (p, N), or ``None`` (zero, or ``y0`` assembled).
 
     Returns:
         (trajectory, tangents): a ``Trajectory`` and a ``Trajectory`` of tangents whose array
         leaves have a leading axis p (float0 for integer leaves).
     """
-    dynamic, static = _partition(mechanism)
-    p = (
-        jax.tree_util.tree_leaves(directions)[0].shape[0]
-        if jax.tree_util.tree_leaves(directions)
-        else dy0.shape[0]
-    )
+    theta, dtheta, rebuild = _perturbed(mechanism, directions)
+    p = dtheta[0].shape[0] if dtheta else dy0.shape[0]
     size = mechanism.state_size
     assembled_ok = jnp.asarray(True)
     if y0 is None:
 
-        def start_state(d):
-            m = eqx.combine(d, static)
+        def start_state(theta):
+            m = rebuild(theta)
             q0, qd0, residual, _ = assemble_state(m, t0)
             return dynamics_initial_state(m, q0, qd0), residual
 
-        y0, linear, residual = jax.linearize(start_state, dynamic, has_aux=True)
-        S0 = jax.vmap(linear)(directions)
+        y0, S0, residual = _push_with_aux(start_state, (theta,), (dtheta,))
         assembled_ok = residual < ASSEMBLY_TOLERANCE
-        rho = _direction_scales(dynamic, None, directions, None)
+        rho = _direction_scales(mechanism, None, directions, None)
     else:
         S0 = jnp.zeros((p, size), y0.dtype) if dy0 is None else dy0
-        rho = _direction_scales(dynamic, y0, directions, S0)
+        rho = _direction_scales(mechanism, y0, directions, S0)
     error = input_error(mechanism, y0, assembled_ok)
 
     offset = config.exponential and bool(np.any(mechanism.memory_rows))
@@ -265,7 +317,7 @@ def sensitivity_core(
             lambda y, m: memory_offset_shift(m, y), mechanism, y0, S0, directions
         )
         y_start, S_start = y0 - shift, S0 - dshift
-        solve_directions = _relabel(directions, solve_mechanism)
+        solve_directions = _relabel(directions, mechanism, solve_mechanism)
     else:
         solve_mechanism, y_start, S_start, solve_directions = mechanism, y0, S0, directions
     args = Augmented(solve_mechanism, solve_directions)
@@ -324,14 +376,14 @@ def sensitivity_core(
     else:
         floats = dtracker = rest = None
 
-    def finish(d, ys, y_final, floats):
+    def finish(theta, ys, y_final, floats):
         extremes = eqx.combine(floats, rest).extremes() if track_extremes else None
         return make_trajectory(
-            eqx.combine(d, static), ts, ys, y_final, extremes, sol.stats, sol.result, error, t_final
+            rebuild(theta), ts, ys, y_final, extremes, sol.stats, sol.result, error, t_final
         )
 
-    traj, linear = jax.linearize(finish, dynamic, ys, y_final, floats)
-    tangents = jax.vmap(linear)(directions, jnp.moveaxis(Ss, 1, 0), S_final, dtracker)
+    traj, linear = jax.linearize(finish, theta, ys, y_final, floats)
+    tangents = jax.vmap(linear)(dtheta, jnp.moveaxis(Ss, 1, 0), S_final, dtracker)
     return traj, tangents
 
 

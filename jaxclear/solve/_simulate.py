@@ -84,6 +84,23 @@ many it uses diffrax's discrete adjoint (``SolverConfig.reverse_adjoint``), whos
 controlled (docs/differentiation.md, "Many parameters")."""
 
 
+def _auto_mode(tree) -> str:
+    """``adjoint="auto"``'s sensitivity mode: ``"forward"`` under ``jax.jvp``/``jax.jacfwd``,
+    ``"reverse"`` under ``jax.grad``/``jax.vjp``/``jax.jacrev``, and ``"either"`` when the leaves
+    show neither (the transformation is applied outside a ``jax.jit`` of the caller, which hides
+    it): a ``jax.custom_jvp`` that integrates one tangent per perturbed scalar and contracts them
+    with the tangents, so that both modes go through it."""
+    if _has_forward_mode_tracer(tree):
+        return "forward"
+    for leaf in jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array)):
+        x = leaf
+        while isinstance(x, jax.core.Tracer):
+            if isinstance(x, getattr(ad, "LinearizeTracer", ())):
+                return "reverse"
+            x = getattr(x, "val", None)
+    return "either"
+
+
 def _has_forward_mode_tracer(tree) -> bool:
     """True if an array leaf is traced by ``jax.jvp``/``jax.jacfwd``, seen through ``vmap``.
 
@@ -236,8 +253,8 @@ def _with_integer_zeros(primal, leaves):
 
 
 def _unit_directions(leaves, flags, p):
-    """Unit directions along each scalar of the perturbed leaves (p = their total size), zero
-    along the others: a list like ``leaves`` of arrays with a leading axis p."""
+    """Unit directions along each scalar of the perturbed leaves (p = their total size), ``None``
+    for the others (not linearised): a list like ``leaves`` of arrays with a leading axis p."""
     eye, offset, out = jnp.eye(p), 0, []
     for leaf, flag in zip(leaves, flags):
         if flag:
@@ -245,7 +262,7 @@ def _unit_directions(leaves, flags, p):
             out.append(jnp.reshape(eye[:, offset : offset + size], (p,) + leaf.shape))
             offset += size
         else:
-            out.append(jnp.zeros((p,) + leaf.shape, leaf.dtype))
+            out.append(None)
     return out
 
 
@@ -303,8 +320,10 @@ def differentiable_simulate(
             dynamic, y0 = primals[:2]
             d_dynamic, d_y0 = tangents[:2]
             _check_no_time_tangents(tangents[2:])
+            # None along the leaves without a tangent: the sensitivity solve does not linearise
+            # along them
             directions = jax.tree_util.tree_map(
-                lambda x, d: (jnp.zeros_like(x) if _is_zero(d) else d)[None],
+                lambda x, d: None if _is_zero(d) else d[None],
                 dynamic,
                 d_dynamic,
                 is_leaf=lambda x: isinstance(x, SymbolicZero),
@@ -319,6 +338,39 @@ def differentiable_simulate(
             return traj, _with_integer_zeros(traj, [None if t is None else t[0] for t in tangents])
 
         fn.defjvp(jvp, symbolic_zeros=True)
+        return fn(*args)
+
+    if mode == "either":
+        fn = jax.custom_jvp(primal)
+
+        def jvp_either(primals, tangents):
+            # the sensitivities along every perturbed scalar, computed from the primals alone,
+            # then contracted with the tangents: linear in them, so JAX transposes the contraction
+            # for reverse mode (the solve itself, a while loop, is never transposed)
+            dynamic, y0 = primals[:2]
+            d_dynamic, d_y0 = tangents[:2]
+            _check_no_time_tangents(tangents[2:])
+            is_zero = lambda x: isinstance(x, SymbolicZero)  # noqa: E731
+            values, d_def = jax.tree_util.tree_flatten(dynamic)
+            d_leaves = jax.tree_util.tree_leaves(d_dynamic, is_leaf=is_zero)
+            flags = [not _is_zero(d) for d in d_leaves]
+            y0_flag = y0 is not None and not _is_zero(d_y0)
+            traj = primal(*primals)
+            p = sum(int(np.prod(v.shape)) for v, f in zip(values, flags) if f)
+            p += int(y0.size) if y0_flag else 0
+            if p == 0:
+                zeros = [None if x is None else jnp.zeros_like(x) for x in _inexact_leaves(traj)]
+                return traj, _with_integer_zeros(traj, zeros)
+            units = _unit_directions(values + ([y0] if y0_flag else []), flags + [y0_flag], p)
+            directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
+            dy0 = units[-1] if y0_flag else None
+            _, sens = tangent_solve(dynamic, y0, directions, dy0, *primals[2:])
+            chosen = [d for d, f in zip(d_leaves, flags) if f] + ([d_y0] if y0_flag else [])
+            along = jnp.concatenate([jnp.reshape(d, (-1,)) for d in chosen])
+            out = [None if s is None else jnp.tensordot(along, s, axes=1) for s in sens]
+            return traj, _with_integer_zeros(traj, out)
+
+        fn.defjvp(jvp_either, symbolic_zeros=True)
         return fn(*args)
 
     fn = jax.custom_vjp(primal)
@@ -485,12 +537,15 @@ def simulate(
             ``"accurate"``), a method name or a ``SolverConfig``.
         y0: initial state (from ``assemble``) to skip assembly.
         adjoint: how derivatives go through the solve: ``"reverse"`` (``jax.grad``, ``jax.vjp``,
-            ``jax.jacrev``; recursive checkpointing with the solver's ``checkpoints``: every step for
-            ``gradient_solver``), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``:
-            cheaper for a few parameters, no reverse mode), ``"auto"`` (default: forward mode when
-            the inputs carry ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode otherwise; a forward
-            transformation applied outside a ``jax.jit`` of your function cannot be seen, pass
-            ``"forward"`` then) or any ``diffrax.AbstractAdjoint``. No effect on the values.
+            ``jax.jacrev``: the error-controlled sensitivities along every perturbed scalar,
+            contracted with the cotangent), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``: one
+            augmented solve per direction, no reverse mode), ``"auto"`` (default: forward mode when
+            the inputs carry ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode under
+            ``jax.grad``/``jax.vjp``/``jax.jacrev``; when a ``jax.jit`` of your function hides the
+            transformation, a rule that serves both: the sensitivities along every perturbed
+            scalar, contracted with the tangents), ``"discrete-forward"``/``"discrete-reverse"``
+            (diffrax's differentiation of the solver's steps, error not controlled) or any
+            ``diffrax.AbstractAdjoint``. No effect on the values.
         statistics_start: start time, s, of the window over which ``Trajectory.extremes`` (peak
             forces, penetrations and accelerations, torque extremes and RMS) are taken from the
             solver's steps; default ``t0``. Use it to leave out the start-up revolutions.
@@ -543,7 +598,7 @@ def simulate(
     try:
         if traced and isinstance(adjoint, str) and adjoint in SENSITIVITY_ADJOINTS:
             if adjoint == "auto":
-                adjoint = "forward" if _has_forward_mode_tracer((mechanism, y0)) else "reverse"
+                adjoint = _auto_mode((mechanism, y0))
             return differentiable_simulate(
                 adjoint, mechanism, *times, y0, start, config, progress, extremes, events
             )
