@@ -3,7 +3,7 @@
 Usage:
     python benchmarks/bench_cases.py [--cases a,b,c] [--methods lawson-tsit5,tsit5,kencarp5]
                                      [--repeats 3] [--pin-cpu K] [--xla-default] [--no-compile]
-                                     [--cvodes auto|measure|quote] [--cvodes-jit]
+                                     [--cvodes auto|measure|quote] [--cvodes-jit] [--json PATH]
 
 For each case of ``bench_clearance.py`` (benchmark slider–crank, 5000 rpm, 2 revolutions,
 c = 0.5 mm, rtol 1e-6, atol 1e-9; a: joint B, L-N, modified Coulomb; b: O, A, B, same laws;
@@ -104,6 +104,7 @@ def main():
         help="CVODES reference: measured here through CasADi (auto: if installed) or quoted",
     )
     p.add_argument("--cvodes-jit", action="store_true", help="CVODES with C-compiled functions")
+    p.add_argument("--json", default=None, help="also write the workers' results to this file")
     a = p.parse_args()
     measure = a.cvodes == "measure" or (
         a.cvodes == "auto" and importlib.util.find_spec("casadi") is not None
@@ -213,6 +214,10 @@ def main():
     if any(row[-1] is None for row in rows):
         print("* CVODES quoted from issue 13 (not measured in this run)")
     print(f"\nfinal load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if a.json:
+        keys = ("case", "auto", "runs", "bare", "cold", "warm", "cvodes")
+        with open(a.json, "w") as f:
+            json.dump(dict(cvodes_quoted=CVODES_S, rows=[dict(zip(keys, r)) for r in rows]), f)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
 Usage:
     python benchmarks/bench_ensemble.py [--case a|c] [--chunks 1,16,64,256,1024] [--members 64]
         [--devices 1,2] [--serial 8] [--revolutions 2] [--order cost] [--solver auto]
-        [--montecarlo 1000]
+        [--montecarlo 1000] [--json PATH]
 
 The benchmark slider–crank at 5000 rpm (Lankarani–Nikravesh c_e = 0.9, no gravity; case a:
 clearance joint B, modified Coulomb μ = 0.01; c: O, A, B, LuGre), 2 revolutions, statistics from
@@ -134,6 +134,7 @@ def main():
     p.add_argument("--order", default="cost", choices=("cost", "index"))
     p.add_argument("--solver", default="auto")
     p.add_argument("--montecarlo", type=int, default=0)
+    p.add_argument("--json", default=None, help="also write each device count's figures here")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     a = p.parse_args()
     a.chunks = [int(c) for c in a.chunks.split(",") if c]
@@ -144,6 +145,7 @@ def main():
         f"case {a.case}, {a.revolutions:g} revolutions at {RPM:g} rpm, clearances 0.5 mm +- 10 %, "
         f"solver {a.solver}, order {a.order}; {os.cpu_count()} CPUs"
     )
+    figures = {}
     for d in [int(x) for x in a.devices.split(",")]:
         env = dict(
             os.environ,
@@ -164,6 +166,7 @@ def main():
             print(done.stderr[-3000:])
             continue
         r = json.loads(done.stdout.strip().splitlines()[-1])
+        figures[d] = dict(r, cores=len(cores), process_s=time.perf_counter() - t)
         if a.montecarlo:
             m = r["montecarlo"]
             print(
@@ -189,6 +192,9 @@ def main():
                 f"{'/'.join(map(str, c['steps']))}"
                 + (f"  ({c['failed']} failed)" if c["failed"] else "")
             )
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(figures, f)
 
 
 if __name__ == "__main__":

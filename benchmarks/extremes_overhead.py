@@ -2,7 +2,7 @@
 ``extremes=False``, in one process, on the benchmark slider–crank (2 revolutions at 5000 rpm,
 721 output points, solver 'auto').
 
-    python benchmarks/extremes_overhead.py [--repeats 5]
+    python benchmarks/extremes_overhead.py [--repeats 5] [--json PATH]
 
 Case a: clearance at B, Lankarani–Nikravesh contact, modified Coulomb friction μ = 0.01 (Tsit5).
 Case c: clearance at O, A, B, hybrid contact, LuGre friction (KenCarp5). Prints the best of the
@@ -10,6 +10,7 @@ repeats for each setting and their ratio; compilation (first call) is not timed.
 """
 
 import argparse
+import json
 import time
 
 import jax
@@ -40,6 +41,7 @@ def best_time(mechanism, repeats: int, extremes: bool) -> tuple[float, int]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--json", default=None, help="also write the figures to this file")
     args = parser.parse_args()
     cases = {
         "a": slider_crank(
@@ -52,10 +54,15 @@ def main() -> None:
     }
     print(f"jaxclear {jaxclear.__version__}, jax {jax.__version__}, best of {args.repeats}")
     print("case  steps  extremes off  extremes on  ratio")
+    figures = {}
     for name, mechanism in cases.items():
         off, steps = best_time(mechanism, args.repeats, extremes=False)
         on, _ = best_time(mechanism, args.repeats, extremes=True)
         print(f"{name:>4}  {steps:5d}  {off:10.3f} s  {on:9.3f} s  {on / off:5.2f}")
+        figures[name] = dict(steps=steps, off_s=off, on_s=on)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(figures, f)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
 
 Usage:
     python benchmarks/lane_refill.py [--case a,c] [--members 128] [--lanes 8,32] [--repeats 2]
-        [--revolutions 2] [--cores 1] [--events 256]
+        [--revolutions 2] [--cores 1] [--events 256] [--json PATH]
 
 The benchmark slider–crank at 5000 rpm (Lankarani–Nikravesh c_e = 0.9, no gravity; case a:
 clearance joint B, modified Coulomb μ = 0.01; case c: O, A, B, LuGre), as in
@@ -31,6 +31,7 @@ Asserts nothing.
 """
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -227,6 +228,14 @@ def run_case(case, a):
             f"|dy|/max|y| {dy.max():.1e}; largest relative difference of the peaks: "
             + ", ".join(f"{k} {v:.1e}" for k, v in worst.items())
         )
+    return {
+        "method": config.method,
+        "members": n,
+        "members_per_s": {
+            f"{kind} {size}": rates[(kind, size)] for kind in kinds for size in a.sizes
+        },
+        "steps": [int(steps0.min()), int(np.median(steps0)), int(steps0.max())],
+    }
 
 
 def main():
@@ -238,6 +247,7 @@ def main():
     p.add_argument("--revolutions", type=float, default=2.0)
     p.add_argument("--cores", type=int, default=1)
     p.add_argument("--events", type=int, default=256)
+    p.add_argument("--json", default=None, help="also write members/s per case to this file")
     a = p.parse_args()
     a.sizes = [int(x) for x in a.lanes.split(",") if x]
     for size in a.sizes:
@@ -256,9 +266,11 @@ def main():
         f"core(s); load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
         f"XLA_FLAGS={os.environ['XLA_FLAGS']!r}"
     )
-    for case in a.case.split(","):
-        run_case(case, a)
+    figures = {case: run_case(case, a) for case in a.case.split(",")}
     print(f"\nload average at the end {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(figures, f)
 
 
 if __name__ == "__main__":
