@@ -169,3 +169,35 @@ def test_beside_jax_persistent_cache(tmp_path):
     assert (again, loaded) == (cold, 0)
     warm, loaded = assemble()
     assert warm == cold and loaded >= 2
+
+
+def test_an_edit_anywhere_in_the_package_changes_the_key(tmp_path):
+    """The key hashes the source of the whole package: after an edit outside ``jaxclear/_core``
+    (here a comment appended to ``solve/_extremes.py`` of a copy of the package) a fresh process
+    compiles again instead of loading programs of the older code. (The hash had covered
+    ``_core`` only, and processes loaded programs built from older code.)"""
+    import shutil
+    from pathlib import Path
+
+    package = Path(jaxclear.__file__).parent
+    copy = tmp_path / "src"
+    shutil.copytree(package, copy / "jaxclear", ignore=shutil.ignore_patterns("__pycache__"))
+    store = tmp_path / "store"
+
+    def assemble():
+        result = subprocess.run(
+            [sys.executable, "-c", ASSEMBLE, str(store)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={**__import__("os").environ, "PYTHONPATH": str(copy)},
+            cwd=tmp_path,  # not the checkout: python -c puts the working folder first on the path
+        )
+        assert result.returncode == 0, result.stderr
+        return int(result.stdout.strip().rsplit(" ", 1)[1])
+
+    first, again = assemble(), assemble()
+    with open(copy / "jaxclear" / "solve" / "_extremes.py", "a", encoding="utf-8") as f:
+        f.write("\n# an edit\n")
+    edited = assemble()
+    assert (first, edited) == (0, 0) and again >= 2  # the same source loads

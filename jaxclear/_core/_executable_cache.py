@@ -133,7 +133,7 @@ def _environment() -> bytes:
         os.environ.get("XLA_FLAGS", ""),
         str(jax.config.jax_enable_x64),  # pyright: ignore[reportAttributeAccessIssue]
         _cpu_flags(),
-        _source_hash(),
+        _SOURCE_HASH,
     ]
     return "\n".join(parts).encode()
 
@@ -148,12 +148,23 @@ def _cpu_flags() -> str:
 
 
 def _source_hash() -> str:
-    root = Path(__file__).parent
+    """SHA-256 of every ``.py`` file of the package, read now."""
+    root = Path(__file__).parent.parent
     digest = hashlib.sha256()
     for path in sorted(root.rglob("*.py")):
         digest.update(str(path.relative_to(root)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
+
+
+_SOURCE_HASH = _source_hash()
+"""The package's source as this process imported it (``import jaxclear`` loads every module),
+taken at import rather than at the first stored call, which a long-lived process may make after
+its files were edited. (Until 2026-11-28 the hash covered ``jaxclear/_core`` only: edits
+elsewhere, e.g. to ``solve/_extremes.py``, kept the key, later processes loaded programs of the
+older code, and ``jaxclear run``'s statistics depended on which programs came from the store;
+measured: two output grids gave rms_rod_acceleration 17376.81 and 17376.87 m/s², bitwise equal
+with an empty store.)"""
 
 
 _KEYED_PACKAGES = ("jaxclear", *_PACKAGES, "jaxtyping", "numpy", "ml_dtypes")
