@@ -44,7 +44,10 @@ SHARE = 1e-6
 """Absolute agreement of contact-mode time shares: contact onsets and ends are interpolated between
 the solver's samples, which the two solves place slightly differently."""
 ROUNDOFF = {"max_constraint_violation"}
-"""Statistics at round-off level (1e-15 m): compared with an absolute tolerance instead."""
+"""Statistics at the level of the solve's drift (~6e-11 m here): compared with an absolute
+tolerance instead, 1e-11 m. With Tsit5 their midpoint samples are the derivative of a dense output
+(``ExtremesTracking``), which rounds them to ~1e-12 m: measured 1.08e-12 m between a member and its
+single run."""
 SETTINGS = EnsembleSettings(chunk_size=CHUNK, progress=False)
 
 VALUES = {
@@ -90,7 +93,7 @@ def test_members_equal_their_single_runs(mechanism, ensemble):
         )
         for name, value in jaxclear.analysis.statistics(single).items():
             if name in ROUNDOFF:
-                np.testing.assert_allclose(ensemble.statistics[name][i], value, atol=1e-12)
+                np.testing.assert_allclose(ensemble.statistics[name][i], value, atol=1e-11)
             else:
                 np.testing.assert_allclose(ensemble.statistics[name][i], value, rtol=SAME)
         # the same solve, rounded differently: step sequences part at rejections, so counts

@@ -121,10 +121,10 @@ def spd_solve(matrix, rhs):
 def evaluate(mechanism, t, y) -> Evaluation:
     """Everything the right-hand side computes at (t, y): an ``Evaluation``."""
     q, qd, states = mechanism.split_state(y)
-    return _evaluate(mechanism, t, q, qd, states)[0]
+    return evaluate_with_caches(mechanism, t, q, qd, states)[0]
 
 
-def _evaluate(
+def evaluate_with_caches(
     mechanism, t, q, qd, states, gamma_h=None
 ) -> tuple[Evaluation, tuple[GroupCache, ...]]:
     """(``Evaluation``, the evaluation groups' caches); ``gamma_h``: see ``forces_and_caches``."""
@@ -153,7 +153,7 @@ def _evaluate(
     return evaluation, caches
 
 
-def _rows(mechanism, head, per_element: dict, dtype) -> Float[Array, " N"]:
+def state_rows(mechanism, head, per_element: dict, dtype) -> Float[Array, " N"]:
     """A state-shaped vector: the ``head`` arrays (q and q̇ rows), then each force element's
     entry of ``per_element`` in state order."""
     parts = [*head] + [per_element[e.name] for e in mechanism.force_elements]
@@ -163,7 +163,7 @@ def _rows(mechanism, head, per_element: dict, dtype) -> Float[Array, " N"]:
 def vector_field(t, y, mechanism) -> Float[Array, " N"]:
     """dy/dt for diffrax: (q̇, q̈, internal state rates)."""
     out = evaluate(mechanism, t, y)
-    return _rows(mechanism, (out.qd, out.qdd), out.state_rates, y.dtype)
+    return state_rows(mechanism, (out.qd, out.qdd), out.state_rates, y.dtype)
 
 
 def implicit_stage(t, partial, gamma_h, mechanism):
@@ -178,16 +178,16 @@ def implicit_stage(t, partial, gamma_h, mechanism):
     replaced by constants in a local copy.)
     """
     q, qd, states = mechanism.split_state(partial)
-    out, caches = _evaluate(mechanism, t, q, qd, states, gamma_h)
+    out, caches = evaluate_with_caches(mechanism, t, q, qd, states, gamma_h)
     stiff = {}
     for group, cache in zip(evaluation_groups(mechanism), caches):
         assert cache.stage is not None  # solved in forces_and_caches with gamma_h
         stiff.update(group.per_element(cache.stage[1]))
     zeros = jnp.zeros((2 * mechanism.num_coordinates,), partial.dtype)
     return (
-        _rows(mechanism, (q, qd), out.states, partial.dtype),
-        _rows(mechanism, (out.qd, out.qdd), out.state_rates, partial.dtype),
-        _rows(mechanism, (zeros,), stiff, partial.dtype),
+        state_rows(mechanism, (q, qd), out.states, partial.dtype),
+        state_rows(mechanism, (out.qd, out.qdd), out.state_rates, partial.dtype),
+        state_rows(mechanism, (zeros,), stiff, partial.dtype),
     )
 
 
@@ -198,7 +198,7 @@ def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:
     rates = {}
     for group in evaluation_groups(mechanism):
         rates.update(group.stiff_rates(mechanism, t, q, qd, states))
-    return _rows(mechanism, (jnp.zeros((2 * n,), y.dtype),), rates, y.dtype)
+    return state_rows(mechanism, (jnp.zeros((2 * n,), y.dtype),), rates, y.dtype)
 
 
 def nonstiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:

@@ -17,6 +17,13 @@ takes 29 steps per revolution (12° of crank angle), and the input-torque minimu
 −130.6 N m from the step ends, −137.1 N m with the parabola, against −138.52 N m
 (tests/test_statistics.py).
 
+With Tsit5 (``auto``'s and ``fast``'s method) the samples cost no evaluation of the model: the
+observations ride along the solver's own stages (``ExtremesTracking``, ``RIDING_SOLVERS``). The
+end sample is the observation at the last stage, which is (t1, y1); the midpoint sample is the
+derivative of the observations' dense output, within ~1e-4 of the observation at the
+interpolated state (tests/test_extremes_sampling.py). Other methods evaluate the observation at
+both samples.
+
 The mean squares of the input torque and of each body's acceleration are integrated by the
 trapezoidal rule over the same steps.
 
@@ -34,6 +41,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import Array, Float
+
+from .._core._smooth import safe_norm
 
 
 class Observation(eqx.Module):
@@ -111,6 +120,11 @@ class Extremes(eqx.Module):
     def body_acceleration_rms(self) -> Float[Array, "*batch b"]:
         """RMS of each body's centre-of-mass acceleration magnitude over the window, m/s²."""
         return jnp.sqrt(self.body_acceleration_square_integral / self.duration[..., None])
+
+
+def body_accelerations(qdd):
+    """|r̈| of each body's centre of mass from q̈ = (ẍ, ÿ, θ̈) per body."""
+    return safe_norm(jnp.reshape(qdd, (-1, 3))[:, :2], axis=-1)
 
 
 class _Layout(eqx.Module):
@@ -237,7 +251,61 @@ class Tracker(eqx.Module):
 
     def update(self, t, obs: Observation) -> "Tracker":
         """The tracker after a step ending at ``t`` with observation ``obs`` there."""
-        v = self.layout.flat(obs)
+        return self.update_flat(t, self.layout.flat(obs))
+
+    def update_pair(self, t_a, v_a, t_b, v_b) -> "Tracker":
+        """``update_flat(t_a, v_a).update_flat(t_b, v_b)`` (t_a < t_b: a step's midpoint and
+        end), the same values from one pass over both samples: the two parabola vertices, the
+        extremes and the trapezoids as arrays over the pair (half the kernels of two updates)."""
+        t_a, t_b = jnp.asarray(t_a, dtype=float), jnp.asarray(t_b, dtype=float)
+        # rows: the update at t_a, then the one at t_b
+        t_e = jnp.stack([self.times[0], self.times[1]])[:, None]
+        t_l = jnp.stack([self.times[1], t_a])[:, None]
+        t_n = jnp.stack([t_a, t_b])[:, None]
+        earlier = jnp.stack([self.recent[0], self.recent[1]])
+        last = jnp.stack([self.recent[1], v_a])
+        v = jnp.stack([v_a, v_b])
+        spaced = (t_l > t_e) & (t_n > t_l)
+        width_0 = jnp.where(spaced, t_l - t_e, 1.0)
+        width_1 = jnp.where(spaced, t_n - t_l, 1.0)
+        d1 = (last - earlier) / width_0
+        d2 = (v - last) / width_1
+        curvature = (d2 - d1) / (width_0 + width_1)
+        extremum = spaced & ((last - earlier) * (v - last) < 0) & (curvature != 0)
+        safe = jnp.where(extremum, curvature, 1.0)
+        s = jnp.clip(0.5 * width_0 - d1 / (2 * safe), 0.0, width_0 + width_1)
+        vertex = earlier + d1 * s + safe * s * (s - width_0)
+        use = extremum & (t_e + s >= self.start)
+        inside = t_n >= self.start
+        new = jnp.where(inside, v, jnp.nan)
+        between = jnp.where(use, vertex, new)
+        candidates = jnp.concatenate([new, between])  # NaN: not in the window
+        width = jnp.maximum(t_n[:, 0] - jnp.maximum(t_l[:, 0], self.start), 0.0)
+        sq = self.layout.squares
+        square = 0.5 * (last[:, sq] ** 2 + v[:, sq] ** 2)
+        onsets, events, counts = self._contact_events(t_a, v_a)
+        halfway = eqx.tree_at(
+            lambda x: (x.times, x.recent, x.contact_onset, x.events, x.event_count),
+            self,
+            (jnp.stack([self.times[1], t_a]), last, onsets, events, counts),
+        )
+        onsets, events, counts = halfway._contact_events(t_b, v_b)
+        return Tracker(
+            layout=self.layout,
+            start=self.start,
+            duration=self.duration + width[0] + width[1],
+            maximum=jnp.fmax(self.maximum, jnp.nanmax(candidates, axis=0)),
+            minimum=jnp.fmin(self.minimum, jnp.nanmin(candidates, axis=0)),
+            square_integral=self.square_integral + width[0] * square[0] + width[1] * square[1],
+            times=jnp.stack([t_a, t_b]),
+            recent=v,
+            contact_onset=onsets,
+            events=events,
+            event_count=counts,
+        )
+
+    def update_flat(self, t, v) -> "Tracker":
+        """``update`` with the observation as its flat vector (``_Layout.flat``)."""
         t = jnp.asarray(t, dtype=float)
         t0, t1 = self.times[0], self.times[1]
         earlier, last = self.recent[0], self.recent[1]
@@ -337,33 +405,104 @@ class AbstractWrappingSolver(diffrax.AbstractAdaptiveSolver):
         return self.solver.func(terms, t0, y0, args)
 
 
+RIDING_SOLVERS = (diffrax.Tsit5, diffrax.Dopri5)
+"""Solvers on which the observations ride along the stages (``ExtremesTracking``): explicit
+Runge–Kutta methods whose last stage is at (t1, y1) (first same as last) and whose dense output
+is built from the stages (``k``)."""
+
+
 class ExtremesTracking(AbstractWrappingSolver):
     """A diffrax solver that runs ``solver`` and carries a ``Tracker`` in its solver state.
 
-    After each step it evaluates ``observe`` at the step's midpoint (from the step's dense output)
-    and at its end; diffrax keeps the new solver state only if the step is accepted, so rejected
-    steps leave the extremes alone.
-    Read the result with ``SaveAt(solver_state=True)``: ``sol.solver_state[1].extremes()``.
+    After each step it samples the observation at the step's midpoint and at its end; diffrax
+    keeps the new solver state only if the step is accepted, so rejected steps leave the extremes
+    alone. Read the result with ``SaveAt(solver_state=True)``: ``sol.solver_state[1].extremes()``.
+
+    **How the samples are taken.** With ``field`` given and a solver of ``RIDING_SOLVERS``
+    (Tsit5, the ``fast`` preset and ``auto``'s choice without friction states), the observation
+    rides along the solver's own evaluations: the solver integrates (y, w) with
+    w' = v(t, y), v the flat observation (``_Layout.flat``), from w = 0 at each step, where one
+    evaluation of the right-hand side gives both dy/dt and v (``field``). No extra evaluation of
+    the model: the end sample is v at the last stage, which is (t1, y1) (first same as last),
+    and the midpoint sample is the derivative of w's dense output there (the solver's continuous
+    extension, one order below the state's). The step-size controller sees the error of y only
+    (w is a read-out, not part of the state), and y's steps and values are those of the plain
+    solve. Otherwise (implicit, IMEX and exponential methods) ``observe`` is evaluated at the
+    midpoint (from the step's dense output) and at the end, in one vectorised call.
 
     Attributes:
         solver: the wrapped solver (any adaptive diffrax solver).
         observe: ``observe(t, y, args) -> Observation``.
         start: start time of the statistics window, s.
         max_events: room for this many contact events per clearance joint (0: none recorded).
+        field: ``field(t, y, args) -> (dy/dt, Observation)``, the vector field of the solve's
+            ``ODETerm`` and the observation from one evaluation; ``None``: always sample with
+            ``observe``.
     """
 
     solver: diffrax.AbstractSolver
     observe: Callable = eqx.field(static=True)
     start: Float[Array, ""]
     max_events: int = eqx.field(static=True, default=0)
+    field: Callable | None = eqx.field(static=True, default=None)
+
+    @property
+    def rides(self) -> bool:
+        """Whether the observations ride along the solver's stages (see the class)."""
+        return self.field is not None and type(self.solver) in RIDING_SOLVERS
+
+    def _riding_term(self, layout: "_Layout") -> diffrax.ODETerm:
+        """The term of the (y, w) system. (As one vector [y, w] it ran a few per cent faster,
+        but the solver's sums over the stages then round y differently: the chaotic three-joint
+        case took another path with extremes on than off.)"""
+        field = self.field
+        assert field is not None
+
+        def vector_field(t, yw, args):
+            dy, obs = field(t, yw[0], args)
+            # q̈ is in dy already, and the bodies' |r̈| follow from it
+            return dy, layout.flat(obs)[layout.torque :]
+
+        return diffrax.ODETerm(vector_field)
 
     def init(self, terms, t0, t1, y0, args):
-        return self.solver.init(terms, t0, t1, y0, args), Tracker.first(
-            self.start, t0, self.observe(t0, y0, args), self.max_events
-        )
+        tracker = Tracker.first(self.start, t0, self.observe(t0, y0, args), self.max_events)
+        if self.rides:
+            w0 = jnp.zeros_like(tracker.recent[1, tracker.layout.torque :])
+            inner = self.solver.init(self._riding_term(tracker.layout), t0, t1, (y0, w0), args)
+        else:
+            inner = self.solver.init(terms, t0, t1, y0, args)
+        return inner, tracker
 
     def step(self, terms, t0, t1, y0, args, solver_state, made_jump):
         inner, tracker = solver_state
+        if self.rides:
+            n = tracker.layout.n
+            w0 = jnp.zeros_like(tracker.recent[1, tracker.layout.torque :])
+            (y1, w1), (y_error, _), dense, inner, result = self.solver.step(
+                self._riding_term(tracker.layout), t0, t1, (y0, w0), args, inner, made_jump
+            )
+            k, k_w = dense["k"]
+            # observed: q̈ (the q̇ rows' rates) and w's rates; k_i = h f(Y_i), and the last
+            # stage is (t1, y1)
+            h = t1 - t0
+            end = (k[-1, n : 2 * n] / h, k_w[-1] / h)
+            # at the midpoint, the derivative of their dense output
+            t_mid = 0.5 * (t0 + t1)
+            readout = self.solver.interpolation_cls(
+                t0=t0,
+                t1=t1,
+                y0=(y0[n : 2 * n], w0),
+                y1=(y1[n : 2 * n], w1),
+                k=(k[:, n : 2 * n], k_w),
+            )
+            mid = readout.derivative(t_mid)
+            mid, end = (
+                jnp.concatenate([qdd, body_accelerations(qdd), rest]) for qdd, rest in (mid, end)
+            )
+            tracker = tracker.update_pair(t_mid, mid, t1, end)
+            dense_info = dict(dense, y0=y0, y1=y1, k=k)
+            return y1, y_error, dense_info, (inner, tracker), result
         y1, y_error, dense_info, inner, result = self.solver.step(
             terms, t0, t1, y0, args, inner, made_jump
         )
@@ -374,7 +513,8 @@ class ExtremesTracking(AbstractWrappingSolver):
         times = jnp.stack([jnp.asarray(t_mid, dtype=float), jnp.asarray(t1, dtype=float)])
         both = jax.vmap(lambda t, y: self.observe(t, y, args))(times, jnp.stack([y_mid, y1]))
         first, second = (jax.tree_util.tree_map(lambda x, i=i: x[i], both) for i in (0, 1))
-        tracker = tracker.update(t_mid, first).update(t1, second)
+        flat = tracker.layout.flat
+        tracker = tracker.update_pair(t_mid, flat(first), t1, flat(second))
         return y1, y_error, dense_info, (inner, tracker), result
 
 

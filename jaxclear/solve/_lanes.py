@@ -46,7 +46,7 @@ from ..dynamics._equations import memory_offset_shift
 from ..model import Mechanism, parameter_info, with_parameters
 from ._extremes import Extremes, ExtremesTracking, Tracker
 from ._observables import ASSEMBLY_TOLERANCE, input_error
-from ._simulate import _DECAY, _FULL, _OBSERVE, _STAGE, initial_state
+from ._simulate import _DECAY, _FIELD, _FULL, _OBSERVE, _STAGE, initial_state
 from ._solver import SolverConfig, solver_config
 
 DEFAULT_LANES = 8
@@ -177,7 +177,7 @@ class _Program(eqx.Module):
         )
         if not self.track:
             return inner
-        return ExtremesTracking(inner, _OBSERVE, start, self.max_events)
+        return ExtremesTracking(inner, _OBSERVE, start, self.max_events, field=_FIELD)
 
     def controller(self, m: Mechanism):
         return self.config.make_controller(memory_rows=m.memory_rows if self.offset else None)

@@ -9,16 +9,17 @@ import jax
 import jax.numpy as jnp
 
 from .._core._errors import InputCheck
-from .._core._smooth import safe_norm
 from ..dynamics._equations import (
     clearance_outputs,
     evaluate,
+    evaluate_with_caches,
     forces_and_caches,
     solve_accelerations,
+    state_rows,
 )
 from ..dynamics._groups import evaluation_groups
 from ..model._translational_clearance import CORNER_PAIRS
-from ._extremes import Observation
+from ._extremes import Observation, body_accelerations
 from ._trajectory import Trajectory
 
 ASSEMBLY_TOLERANCE = 1e-7  # m: residual above which a jitted/batched assembly is an error
@@ -75,6 +76,21 @@ def observe(t, y, mechanism) -> Observation:
     q, qd, states = mechanism.split_state(y)
     forces, caches = forces_and_caches(mechanism, t, q, qd, states)
     qdd, lam, phi, _ = solve_accelerations(mechanism, t, q, qd, forces)
+    return _observation(mechanism, caches, qdd, lam, phi)
+
+
+def field_and_observation(t, y, mechanism) -> tuple[Any, Observation]:
+    """(dy/dt, ``Observation``) at (t, y) from one evaluation of the right-hand side: the vector
+    field of ``dynamics._equations.vector_field`` (the same operations) and what ``observe``
+    returns, from the same forces, multipliers and contact caches (``ExtremesTracking`` lets
+    the observation ride along the solver's stages, ``jaxclear.solve._extremes``)."""
+    q, qd, states = mechanism.split_state(y)
+    ev, caches = evaluate_with_caches(mechanism, t, q, qd, states)
+    dy = state_rows(mechanism, (ev.qd, ev.qdd), ev.state_rates, y.dtype)
+    return dy, _observation(mechanism, caches, ev.qdd, ev.multipliers, ev.phi)
+
+
+def _observation(mechanism, caches, qdd, lam, phi) -> Observation:
     normal_force, penetration = {}, {}
     for group, cache in zip(evaluation_groups(mechanism), caches):
         for name, (kinematics, contact) in group.contacts(cache).items():
@@ -91,10 +107,10 @@ def observe(t, y, mechanism) -> Observation:
     if mechanism.driver is not None:
         torque = -lam[mechanism.constraint_slices[mechanism.driver.name]][0]
     else:
-        torque = jnp.zeros((), y.dtype)
+        torque = jnp.zeros((), qdd.dtype)
     return Observation(
         accelerations=qdd,
-        body_accelerations=safe_norm(jnp.reshape(qdd, (-1, 3))[:, :2], axis=-1),
+        body_accelerations=body_accelerations(qdd),
         input_torque=torque,
         normal_force=normal_force,
         penetration=penetration,

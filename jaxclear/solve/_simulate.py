@@ -25,7 +25,13 @@ from ..dynamics._equations import (
 )
 from ..dynamics._equations import initial_state as dynamics_initial_state
 from ._extremes import ExtremesTracking
-from ._observables import ASSEMBLY_TOLERANCE, input_error, make_trajectory, observe
+from ._observables import (
+    ASSEMBLY_TOLERANCE,
+    field_and_observation,
+    input_error,
+    make_trajectory,
+    observe,
+)
 from ._sensitivity import SENSITIVITY_CORE
 from ._solver import SolverConfig, solver_config
 from ._trajectory import Trajectory
@@ -66,6 +72,7 @@ def check_parameters(mechanism) -> None:
 
 
 _OBSERVE = eqx.filter_jit(observe)
+_FIELD = eqx.filter_jit(field_and_observation)
 
 
 ADJOINTS = ("auto", "forward", "reverse", "discrete-forward", "discrete-reverse")
@@ -188,7 +195,9 @@ def _simulate_core(
             solver = eqx.tree_at(lambda s: s.scan_kind, solver, "lax", is_leaf=lambda x: x is None)
     sol = diffrax.diffeqsolve(
         terms,
-        ExtremesTracking(solver, _OBSERVE, jnp.asarray(stats_start, dtype=float), max_events)
+        ExtremesTracking(
+            solver, _OBSERVE, jnp.asarray(stats_start, dtype=float), max_events, field=_FIELD
+        )
         if track_extremes
         else solver,
         t0,
@@ -549,9 +558,10 @@ def simulate(
         statistics_start: start time, s, of the window over which ``Trajectory.extremes`` (peak
             forces, penetrations and accelerations, torque extremes and RMS) are taken from the
             solver's steps; default ``t0``. Use it to leave out the start-up revolutions.
-        extremes: track ``Trajectory.extremes`` (two evaluations of forces and accelerations
-            per step, at its midpoint and end: +25–40 % run time on the benchmark slider–crank,
-            benchmarks/README.md). ``False`` skips it (``Trajectory.extremes`` is then ``None``),
+        extremes: track ``Trajectory.extremes`` (samples at each step's midpoint and end, taken
+            from the solver's own stages with Tsit5 and by two more evaluations of forces and
+            accelerations otherwise: +12–14 % run time on the benchmark slider–crank with one
+            clearance joint, +28–30 % with three and LuGre, benchmarks/README.md). ``False`` skips it (``Trajectory.extremes`` is then ``None``),
             e.g. for fits that need only the trajectory.
         contact_events: record up to this many contact events (onset and end, located between
             the solver's samples) per clearance joint in ``Trajectory.extremes`` (needs
