@@ -54,12 +54,15 @@ def _ensemble(mech, n, chunk):
 
     settings = jaxclear.EnsembleSettings(chunk_size=chunk, progress=False)
     t = time.perf_counter()
-    r = jaxclear.run_ensemble(mech, _values(mech, n), T1, statistics_start=PERIOD,
-                              num_points=POINTS, settings=settings)
+    r = jaxclear.run_ensemble(
+        mech, _values(mech, n), T1, statistics_start=PERIOD, num_points=POINTS, settings=settings
+    )
     wall = time.perf_counter() - t
     steps = np.asarray(r.num_steps)[np.asarray(r.succeeded)]
-    return wall, int((~np.asarray(r.succeeded)).sum()), (
-        [int(steps.min()), int(np.median(steps)), int(steps.max())] if steps.size else []
+    return (
+        wall,
+        int((~np.asarray(r.succeeded)).sum()),
+        ([int(steps.min()), int(np.median(steps)), int(steps.max())] if steps.size else []),
     )
 
 
@@ -111,8 +114,17 @@ def cpu_worker(a, case, sink):
         serial = (time.perf_counter() - t) / (len(cs) - 1)
         _emit({"cpu": case, "serial_s_per_member": serial}, sink)
         first, run, bad, med = _gradient_batch(a.cpu_members)
-        _emit({"cpu": case, "batch": a.cpu_members, "compile_s": first - run, "run_s": run,
-               "nonfinite": bad, "median_gradient": med}, sink)
+        _emit(
+            {
+                "cpu": case,
+                "batch": a.cpu_members,
+                "compile_s": first - run,
+                "run_s": run,
+                "nonfinite": bad,
+                "median_gradient": med,
+            },
+            sink,
+        )
         return
     mech = _mechanism(case)
     vals = _values(mech, 4)
@@ -121,8 +133,9 @@ def cpu_worker(a, case, sink):
     def single(i):
         m = jaxclear.with_parameters(mech, {k: v[i] for k, v in vals.items()})
         tr = jaxclear.simulate(m, T1, num_points=POINTS, statistics_start=PERIOD, solver=solver)
-        jaxclear.simulate(jaxclear.ideal_mechanism(m), T1, num_points=POINTS, solver="fast",
-                          extremes=False)
+        jaxclear.simulate(
+            jaxclear.ideal_mechanism(m), T1, num_points=POINTS, solver="fast", extremes=False
+        )
         jaxclear.analysis.statistics(tr)
 
     single(3)
@@ -133,8 +146,18 @@ def cpu_worker(a, case, sink):
     k = a.cpu_members
     first, _, _ = _ensemble(mech, k, k)
     wall, failed, steps = _ensemble(mech, 2 * k, k)
-    _emit({"cpu": case, "chunk": k, "members": 2 * k, "run_s": wall, "compile_s": first - wall / 2,
-           "failed": failed, "steps": steps}, sink)
+    _emit(
+        {
+            "cpu": case,
+            "chunk": k,
+            "members": 2 * k,
+            "run_s": wall,
+            "compile_s": first - wall / 2,
+            "failed": failed,
+            "steps": steps,
+        },
+        sink,
+    )
 
 
 def main():
@@ -160,29 +183,56 @@ def main():
         core = cores[-1 - k] if len(cores) > len(jobs) else cores[k % len(cores)]
         args = ["taskset", "-c", str(core), sys.executable, __file__, "--cpu-worker", job]
         args += ["--cpu-members", str(a.cpu_members)] + (["--json", a.json] if a.json else [])
-        workers.append(subprocess.Popen(
-            args, env=dict(os.environ, JAX_PLATFORMS="cpu"), stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True,
-        ))
+        workers.append(
+            subprocess.Popen(
+                args,
+                env=dict(os.environ, JAX_PLATFORMS="cpu"),
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        )
     import jax
 
     import jaxclear
 
-    _emit({"jax": jax.__version__, "jaxclear": jaxclear.__version__, "backend": jax.default_backend(),
-           "devices": [str(d) for d in jax.devices()], "cpus": os.cpu_count()}, sink)
+    _emit(
+        {
+            "jax": jax.__version__,
+            "jaxclear": jaxclear.__version__,
+            "backend": jax.default_backend(),
+            "devices": [str(d) for d in jax.devices()],
+            "cpus": os.cpu_count(),
+        },
+        sink,
+    )
     results = {"gpu": {}, "cpu": {}}
     for case in cases:
         mech = _mechanism(case)
         first, _, _ = _ensemble(mech, a.members, a.members)
         wall, failed, steps = _ensemble(mech, a.members, a.members)
-        rec = {"gpu": case, "members": a.members, "first_call_s": first, "run_s": wall,
-               "members_per_s": a.members / wall, "failed": failed, "steps": steps}
+        rec = {
+            "gpu": case,
+            "members": a.members,
+            "first_call_s": first,
+            "run_s": wall,
+            "members_per_s": a.members / wall,
+            "failed": failed,
+            "steps": steps,
+        }
         results["gpu"][case] = rec
         _emit(rec, sink)
     if a.gradient:
         first, run, bad, med = _gradient_batch(a.gradient)
-        rec = {"gpu": "gradient", "members": a.gradient, "first_call_s": first, "run_s": run,
-               "members_per_s": a.gradient / run, "nonfinite": bad, "median_gradient": med}
+        rec = {
+            "gpu": "gradient",
+            "members": a.gradient,
+            "first_call_s": first,
+            "run_s": run,
+            "members_per_s": a.gradient / run,
+            "nonfinite": bad,
+            "median_gradient": med,
+        }
         results["gpu"]["gradient"] = rec
         _emit(rec, sink)
     for job, w in zip(jobs, workers):

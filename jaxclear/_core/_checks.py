@@ -5,6 +5,8 @@ value checks fall to the compiled solve's input checks (``Trajectory.input_error
 ``simulate``). Every message names the owner, the parameter, the value and a fix.
 """
 
+import os
+
 import jax
 import jax.core  # jax.core.Tracer: imported for type checkers (jax imports it itself)
 import numpy as np
@@ -85,3 +87,51 @@ def check_shape(owner: str, name: str, value, shape: tuple) -> None:
     """Raise ``ModelError`` unless ``value`` has ``shape``."""
     if np.shape(value) != shape:
         raise ModelError(f"{owner}: {name} must have shape {shape}, got shape {np.shape(value)}.")
+
+
+def host_memory() -> int | None:
+    """Bytes of physical memory of this machine, or ``None`` where the system does not say."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def check_solve_memory(state_size: int, channels: int, num_saved: int, events: int) -> None:
+    """Raise ``ValueError`` if a solve's output buffers cannot fit in this machine's memory.
+
+    XLA does not always report a buffer it cannot allocate: a compiled solve served by the
+    program store (``_executable_cache``) waited forever for the result instead (``jaxclear run
+    --revolutions 1e9`` asked for a 2 TB contact-event buffer per joint). So ``simulate`` refuses
+    such a call before compiling anything. The two buffers counted are lower bounds of what the
+    solve holds: the saved states (``num_saved`` x ``state_size`` float64) and the contact-event
+    buffer (``channels`` x ``events`` x 2 float64).
+
+    Args:
+        state_size: length of the state vector y.
+        channels: contact channels whose events are recorded (one per revolute clearance joint,
+            three per translational one; the number of clearance joints is a lower bound).
+        num_saved: saved instants (``num_points`` or ``len(ts)``).
+        events: ``contact_events`` (0: none recorded).
+    """
+    memory = host_memory()
+    if memory is None:
+        return
+    saved = 8 * max(num_saved, 0) * state_size
+    buffer = 16 * max(events, 0) * channels
+    if saved + buffer <= memory:
+        return
+    parts, fixes = [], []
+    if saved >= 0.1 * (saved + buffer):
+        parts.append(f"{saved / 1e9:.3g} GB for {num_saved} saved instants of {state_size} values")
+        fixes.append("save fewer instants (num_points or ts; or split the window)")
+    if buffer >= 0.1 * (saved + buffer):
+        parts.append(
+            f"{buffer / 1e9:.3g} GB for contact_events={events} on {channels} contact channels"
+        )
+        most = memory // (16 * channels)
+        fixes.append(f"record fewer contact events (this memory holds at most {most} per channel)")
+    raise ValueError(
+        f"the solve needs at least {' and '.join(parts)}, more than this machine's "
+        f"{memory / 1e9:.3g} GB of memory; {', or '.join(fixes)}."
+    )

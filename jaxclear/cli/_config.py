@@ -12,7 +12,7 @@ from typing import Any
 
 from ..studies._revolutions import MAX_REVOLUTIONS
 from ._common import UsageError
-from ._setting_table import SETTINGS
+from ._setting_table import MAX_SAVED_INSTANTS, SETTINGS
 from ._settings import (
     AUTO,
     BY_LABEL,
@@ -268,6 +268,16 @@ def resolve_settings(args: argparse.Namespace) -> Settings:
             f"{sources[('simulation', 'skip_revolutions')]}: skip_revolutions ({simulation['skip_revolutions']:g}) must be "
             f"smaller than revolutions ({horizon:g}) so that something is left to plot; "
             "lower --skip-revolutions or raise --revolutions"
+        )
+    instants = horizon * simulation["points_per_revolution"]
+    if instants > MAX_SAVED_INSTANTS:
+        raise UsageError(
+            f"{sources[('simulation', 'points_per_revolution')]} = {simulation['points_per_revolution']} "
+            f"over {horizon:g} revolutions{' (auto: at most that)' if simulation['revolutions'] == AUTO else ''} "
+            f"saves {instants:.3g} instants, more than "
+            f"{MAX_SAVED_INSTANTS} (each holds about 0.6 kB in memory and a row of results.csv; "
+            "peaks and statistics come from the solver's steps, not from these instants); "
+            "lower --points-per-revolution or --revolutions"
         )
     return Settings(
         config=config,

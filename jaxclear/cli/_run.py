@@ -165,12 +165,11 @@ def _block(traj):
     return traj
 
 
-def event_capacity(settings: Settings) -> int:
-    """Contact events recorded per clearance joint (``simulate(contact_events=...)``)."""
-    revolutions = settings.config["simulation"]["revolutions"]
-    if revolutions == AUTO:
-        revolutions = MAX_REVOLUTIONS
-    return int(max(256, math.ceil(EVENTS_PER_REVOLUTION * revolutions)))
+def event_capacity() -> int:
+    """Contact events recorded per revolution and clearance joint (``run_revolutions``'s
+    ``contact_events``: each revolution is a solve with a buffer of its own). It had been sized
+    for the whole horizon, in every revolution: memory grew with the square of the horizon."""
+    return max(256, EVENTS_PER_REVOLUTION)
 
 
 def timed_revolutions(
@@ -405,7 +404,7 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
             settings,
             solver,
             progress,
-            event_capacity(settings) if contact_joints(mechanism) else 0,
+            event_capacity() if contact_joints(mechanism) else 0,
             companions=args.spread,
         )
         traj = revolution_run.trajectory

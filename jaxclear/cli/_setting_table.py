@@ -35,6 +35,26 @@ MAX_RPM = 1e5
 the square of the speed, 400 times above the 5000 rpm benchmark's. A larger value is almost surely
 a unit slip (rad/s, rev/h) and would only make the solver grind."""
 
+MAX_HORIZON_REVOLUTIONS = 1000
+"""Upper bound of a fixed ``revolutions``. ``jaxclear run`` solves one revolution at a time, about
+0.1 s each, and keeps every revolution's results in memory. At 1e9 revolutions each revolution's
+contact-event buffer had been sized for the whole horizon (2 TB per joint), and XLA waited forever
+for it instead of failing; the buffers are now per revolution (``cli._run.event_capacity``).
+Measured peak memory of the default run: 1.01, 1.18 and 1.50 GB at 25, 100 and 200 revolutions
+with the whole-horizon buffers, 1.54 GB at 200 with the per-revolution ones (the results
+dominate). 1000 revolutions is 12 s of motion at 5000 rpm, 80 times the 12 revolutions of
+``auto``'s cap."""
+
+MAX_SAVED_INSTANTS = 10**6
+"""Upper bound of revolutions x points_per_revolution (the saved instants of a run): each takes
+about 0.6 kB in memory for the benchmark slider-crank with three clearance joints (its
+``Trajectory`` arrays), and a row of results.csv. Contact peaks and statistics come from the
+solver's steps, not from the saved grid (docs/outputs.md)."""
+
+MAX_STEPS = 10**9
+"""Upper bound of ``max_steps`` (per solve): about 15 hours at the ~54 us a step of the default
+run (11 894 steps in 0.64 s over its 6 revolutions); values beyond 2**63 do not even fit the solver's step counter."""
+
 STARTS = ("wall", "centred")
 """Initial journal positions: on the bearing wall along the ideal joint's reaction
 (``jaxclear.wall_start``), or centred in the bearing."""
@@ -68,7 +88,9 @@ class Setting:
         help: one-line description.
         flag: command-line option (``None``: config file only).
         check: ``"positive"``, ``"nonnegative"``, ``"finite"``, ``"fraction"`` (in (0, 1)),
-            ``"rpm"`` (positive, at most ``MAX_RPM``) or ``None``.
+            ``"rpm"`` (positive, at most ``MAX_RPM``), ``"revolutions"`` (positive, at most
+            ``MAX_HORIZON_REVOLUTIONS``), ``"steps"`` (positive, at most ``MAX_STEPS``) or
+            ``None``.
         flag_help: help of the flag if it differs from ``help``.
         mechanisms: the mechanisms the key applies to (``None``: all).
         choices: allowed values of a string setting (``None``: any, checked where used).
@@ -627,7 +649,7 @@ SETTINGS: tuple[Setting, ...] = (
         "only, its default): until the response settles into a period-k orbit, at most 12 "
         "(docs/outputs.md); the ensembles and fit need a number",
         "--revolutions",
-        "positive",
+        "revolutions",
         command_defaults=(("run", "auto"),),
     ),
     Setting(
@@ -693,7 +715,7 @@ SETTINGS: tuple[Setting, ...] = (
         "",
         "most solver steps before giving up",
         "--max-steps",
-        "positive",
+        "steps",
     ),
     Setting(
         "solver",

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 
 from ..solve import PRESETS
 from ._common import UsageError
-from ._setting_table import MAX_RPM, SETTINGS, Setting
+from ._setting_table import MAX_HORIZON_REVOLUTIONS, MAX_RPM, MAX_STEPS, SETTINGS, Setting
 
 SECTIONS = tuple(dict.fromkeys(s.section for s in SETTINGS))
 BY_LABEL = {(s.section, s.key): s for s in SETTINGS}
@@ -115,8 +115,19 @@ def check_value(s: Setting, value, source: str) -> None:
         return
     if not math.isfinite(value):
         raise UsageError(f"{source} must be finite, got {value!r}")
-    if s.check in ("positive", "rpm") and not value > 0:
+    if s.check in ("positive", "rpm", "revolutions", "steps") and not value > 0:
         raise UsageError(f"{source} must be positive, got {value!r}")
+    if s.check == "revolutions" and value > MAX_HORIZON_REVOLUTIONS:
+        raise UsageError(
+            f"{source} = {value:g} is more revolutions than one run holds (at most {MAX_HORIZON_REVOLUTIONS}: "
+            "every revolution is a solve of about 0.1 s, and the run keeps every revolution's "
+            'results in memory); give at most that, or "auto" for jaxclear run'
+        )
+    if s.check == "steps" and value > MAX_STEPS:
+        raise UsageError(
+            f"{source} = {value} is more steps than a solve can take (at most {MAX_STEPS}: about "
+            "15 hours at the default run's pace); loosen rtol/atol or shorten the horizon instead"
+        )
     if s.check == "rpm" and value > MAX_RPM:
         raise UsageError(
             f"{source} = {value:g} rev/min is implausible (at most {MAX_RPM:g}; linkages run at 200-6000 rpm); "

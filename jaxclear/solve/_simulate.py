@@ -13,7 +13,7 @@ from jax.custom_derivatives import CustomVJPPrimal, SymbolicZero
 from jax.interpreters import ad
 from jaxtyping import ArrayLike
 
-from .._core._checks import is_concrete, staging
+from .._core._checks import check_solve_memory, is_concrete, staging
 from .._core._errors import InputCheck, ModelError, SimulationError
 from .._core._executable_cache import stored_jit
 from ..dynamics._assembly import assemble_state, check_assembly
@@ -497,6 +497,18 @@ def _time_grid(t0, t1, ts, num_points):
     return jnp.asarray(ts)
 
 
+def _check_memory(mechanism, ts, num_points, events: int) -> None:
+    """Refuse output buffers larger than this machine's memory before making the time grid or
+    compiling (XLA may wait forever for one it cannot allocate): ``check_solve_memory``."""
+    if ts is not None:
+        num_saved = int(np.size(ts))
+    else:  # as _time_grid
+        num_saved = 201 if num_points is None else int(num_points)
+    # a translational clearance joint has three event channels (J, J.upper, J.lower)
+    channels = len(mechanism.clearance_joints) + 3 * len(mechanism.translational_clearance_joints)
+    check_solve_memory(mechanism.state_size, channels, num_saved, events)
+
+
 def _is_traced(tree) -> bool:
     leaves = jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array))
     return staging() or any(isinstance(x, jax.core.Tracer) for x in leaves)
@@ -590,6 +602,7 @@ def simulate(
             raise ValueError(f"t0 must be finite, got {t0}.")
         if not (np.isfinite(t1) and t1 > t0):
             raise ValueError(f"t1 must be finite and greater than t0={t0}, got {t1}.")
+    _check_memory(mechanism, ts, num_points, int(contact_events) if extremes else 0)
     grid = _time_grid(t0, t1, ts, num_points)
     if y0 is not None:
         y0 = jnp.asarray(y0, dtype=float)
