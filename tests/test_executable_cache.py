@@ -196,8 +196,8 @@ def test_an_edit_anywhere_in_the_package_changes_the_key(tmp_path):
         assert result.returncode == 0, result.stderr
         return int(result.stdout.strip().rsplit(" ", 1)[1])
 
-    first, again = assemble(), assemble()
+    assert assemble() == 0
     with open(copy / "jaxclear" / "solve" / "_extremes.py", "a", encoding="utf-8") as f:
         f.write("\n# an edit\n")
-    edited = assemble()
-    assert (first, edited) == (0, 0) and again >= 2  # the same source loads
+    # compiled again (that the same source loads: test_beside_jax_persistent_cache)
+    assert assemble() == 0
