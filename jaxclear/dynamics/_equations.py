@@ -8,6 +8,8 @@ positive definite Schur complement S = Φ_q M⁻¹ Φ_qᵀ (docs/model.md §5b):
 λ = S⁻¹ (Φ_q M⁻¹ Q − rhs), q̈ = M⁻¹ (Q − Φ_qᵀ λ).
 """
 
+from typing import Any
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -177,6 +179,15 @@ def implicit_stage(t, partial, gamma_h, mechanism):
     benchmark, one core, a KenCarp5 step took 50.8 µs, and 35.5 µs with the stiff evaluation
     replaced by constants in a local copy.)
     """
+    return implicit_stage_and_evaluation(t, partial, gamma_h, mechanism)[0]
+
+
+def implicit_stage_and_evaluation(
+    t, partial, gamma_h, mechanism
+) -> tuple[tuple[Any, Any, Any], Evaluation, tuple[GroupCache, ...]]:
+    """``implicit_stage``'s (y, f(y), f_I(y)), with the ``Evaluation`` at y and the evaluation
+    groups' caches it came from (the same operations): what an observation at the stage needs
+    (``jaxclear.solve._observables.field_and_observation`` with ``gamma_h``)."""
     q, qd, states = mechanism.split_state(partial)
     out, caches = evaluate_with_caches(mechanism, t, q, qd, states, gamma_h)
     stiff = {}
@@ -184,11 +195,12 @@ def implicit_stage(t, partial, gamma_h, mechanism):
         assert cache.stage is not None  # solved in forces_and_caches with gamma_h
         stiff.update(group.per_element(cache.stage[1]))
     zeros = jnp.zeros((2 * mechanism.num_coordinates,), partial.dtype)
-    return (
+    stage = (
         state_rows(mechanism, (q, qd), out.states, partial.dtype),
         state_rows(mechanism, (out.qd, out.qdd), out.state_rates, partial.dtype),
         state_rows(mechanism, (zeros,), stiff, partial.dtype),
     )
+    return stage, out, caches
 
 
 def stiff_vector_field(t, y, mechanism) -> Float[Array, " N"]:

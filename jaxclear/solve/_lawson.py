@@ -26,7 +26,7 @@ Lipschitz constants", SIAM J. Numer. Anal. 4 (1967) 372–380; Ch. Tsitouras, Co
 """
 
 from collections.abc import Callable
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import diffrax
 import equinox as eqx
@@ -136,9 +136,13 @@ class LawsonTsit5(diffrax.AbstractAdaptiveSolver):
             the exact diagonal of the linear part there: the rest is treated explicitly.
         rows: static indices of the decay rows in y; every other row is integrated by plain Tsit5.
 
-    The state must be a single 1-D array. FSAL: one vector-field evaluation per stage 2..7 and
-    one ``decay`` evaluation per step. The exponentials are taken on the decay rows only: most rows
-    have ℓ = 0, and exponentials over the whole state made the step markedly slower.
+    The state is a single 1-D array y, or a pair (y, w) (``ExtremesTracking``, the observations
+    riding along the stages): then ``terms.vf(t, (y, w), args)`` returns (dy/dt, dw/dt), dw/dt
+    does not depend on w, and w is integrated by plain Tsit5 (its decay rate is 0); y's
+    arithmetic is the same as without w (``decay`` sees y alone). FSAL: one vector-field
+    evaluation per stage 2..7 and one ``decay`` evaluation per step. The exponentials are taken
+    on the decay rows only: most rows have ℓ = 0, and exponentials over the whole state made the
+    step markedly slower.
     """
 
     decay: Callable = eqx.field(static=True)
@@ -159,6 +163,11 @@ class LawsonTsit5(diffrax.AbstractAdaptiveSolver):
         f0 = solver_state
         if made_jump is not False:
             f0 = jax.lax.cond(made_jump, lambda: terms.vf(t0, y0, args), lambda: f0)
+        riding = isinstance(y0, tuple)  # (y, w): see the class
+        w0: Any = None
+        g0: Any = None
+        if riding:
+            (y0, w0), (f0, g0) = y0, f0
         h = t1 - t0
         rows = self.rows
         dtype = y0.dtype
@@ -176,7 +185,7 @@ class LawsonTsit5(diffrax.AbstractAdaptiveSolver):
         def stage(i, carry):
             # One stage per iteration: the vector field is compiled once, not seven times (XLA
             # compile time 5.2 -> ~2 s on the one-joint slider-crank).
-            ks, k_rows, _, _ = carry
+            (ks, k_rows, _, _), riders = carry[:4], carry[4:]
             a, ci = a_full[i], c[i]
             y_stage = y0 + jnp.sum(a[:, None] * ks, axis=0)
             decayed = y0_rows
@@ -187,17 +196,38 @@ class LawsonTsit5(diffrax.AbstractAdaptiveSolver):
                     a[:, None] * factors * k_rows, axis=0
                 )
                 y_stage = _set_rows(y_stage, rows, decayed)
-            f = terms.vf(t0 + ci * h, y_stage, args)
+            if riding:
+                ks_w, _ = riders
+                # dw/dt does not depend on w: its stages need not be formed
+                f, g = terms.vf(t0 + ci * h, (y_stage, w0), args)
+                riders = (ks_w.at[i].set(h * g), g)
+            else:
+                f = terms.vf(t0 + ci * h, y_stage, args)
             ks = ks.at[i].set(h * f)
             if rows:
                 k_rows = k_rows.at[i].set(h * _get_rows(f, rows) - hl * decayed)
-            return ks, k_rows, y_stage, f
+            return (ks, k_rows, y_stage, f) + riders
 
-        ks, k_rows, y1, f_last = jax.lax.fori_loop(1, _STAGES, stage, (ks, k_rows, y0, f0))
+        carry = (ks, k_rows, y0, f0)
+        if riding:
+            carry += (jnp.zeros((_STAGES,) + w0.shape, w0.dtype).at[0].set(h * g0), g0)
+        ks, k_rows, y1, f_last, *riders = jax.lax.fori_loop(1, _STAGES, stage, carry)
         # y1 is stage 7, at c = 1 with weights b (first same as last)
         y_error = jnp.sum(b_error[:, None] * ks, axis=0)
         if rows:
             factors = jnp.exp((1.0 - c)[:, None] * hl[None, :])
             y_error = _set_rows(y_error, rows, jnp.sum(b_error[:, None] * factors * k_rows, axis=0))
         dense_info = dict(y0=y0, y1=y1, k=ks, hl=hl, k_rows=k_rows, rows=rows)
+        if riding:
+            ks_w, g_last = riders
+            w1 = w0 + jnp.sum(a_full[-1][:, None] * ks_w, axis=0)  # stage 7's weights are b
+            w_error = jnp.sum(b_error[:, None] * ks_w, axis=0)
+            dense_info.update(y0=(y0, w0), y1=(y1, w1), k=(ks, ks_w))
+            return (
+                (y1, w1),
+                (y_error, w_error),
+                dense_info,
+                (f_last, g_last),
+                diffrax.RESULTS.successful,
+            )
         return y1, y_error, dense_info, f_last, diffrax.RESULTS.successful

@@ -14,6 +14,7 @@ from ..dynamics._equations import (
     evaluate,
     evaluate_with_caches,
     forces_and_caches,
+    implicit_stage_and_evaluation,
     solve_accelerations,
     state_rows,
 )
@@ -79,11 +80,18 @@ def observe(t, y, mechanism) -> Observation:
     return _observation(mechanism, caches, qdd, lam, phi)
 
 
-def field_and_observation(t, y, mechanism) -> tuple[Any, Observation]:
+def field_and_observation(t, y, mechanism, gamma_h=None) -> tuple[Any, Observation]:
     """(dy/dt, ``Observation``) at (t, y) from one evaluation of the right-hand side: the vector
     field of ``dynamics._equations.vector_field`` (the same operations) and what ``observe``
     returns, from the same forces, multipliers and contact caches (``ExtremesTracking`` lets
-    the observation ride along the solver's stages, ``jaxclear.solve._extremes``)."""
+    the observation ride along the solver's stages, ``jaxclear.solve._extremes``).
+
+    With ``gamma_h`` (γh), an IMEX stage of ``AffineKenCarp`` instead: y is the stage's partial
+    sum P, and the result ((Y, f(Y), f_I(Y)), the ``Observation`` at Y), the first part that of
+    ``dynamics._equations.implicit_stage`` (the same operations)."""
+    if gamma_h is not None:
+        stage, ev, caches = implicit_stage_and_evaluation(t, y, gamma_h, mechanism)
+        return stage, _observation(mechanism, caches, ev.qdd, ev.multipliers, ev.phi)
     q, qd, states = mechanism.split_state(y)
     ev, caches = evaluate_with_caches(mechanism, t, q, qd, states)
     dy = state_rows(mechanism, (ev.qd, ev.qdd), ev.state_rates, y.dtype)
