@@ -6,6 +6,7 @@ unreadable entry) must never be served from the store. Entries are loaded here i
 process after forgetting the in-memory ones; tests/test_cli.py checks a second process.
 """
 
+import os
 import subprocess
 import sys
 
@@ -144,6 +145,23 @@ print(repr(y0.tolist()), jaxclear.compilation_cache_statistics()["loaded"])
 """
 
 
+def _assemble_in_a_fresh_process(folder, package=None):
+    """``ASSEMBLE`` in a new Python process with the store (and JAX's cache) in ``folder``; with
+    ``package``, importing jaxclear from that folder: (the state's repr, programs loaded)."""
+    env = dict(os.environ, PYTHONPATH=str(package)) if package is not None else None
+    result = subprocess.run(
+        [sys.executable, "-c", ASSEMBLE, str(folder)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+        cwd=folder.parent,  # not the checkout: python -c puts the working folder first on the path
+    )
+    assert result.returncode == 0, result.stderr
+    state, loaded = result.stdout.strip().rsplit(" ", 1)
+    return state, int(loaded)
+
+
 def test_beside_jax_persistent_cache(tmp_path):
     """JAX's persistent cache in the same folder (as ``jaxclear run`` sets it up), in fresh
     processes: a program JAX hands back from its cache cannot be serialized again, so the store's
@@ -151,15 +169,7 @@ def test_beside_jax_persistent_cache(tmp_path):
     kept), then warm: every process gets the same state, the last one from loaded programs."""
 
     def assemble():
-        result = subprocess.run(
-            [sys.executable, "-c", ASSEMBLE, str(tmp_path)],
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        assert result.returncode == 0, result.stderr
-        state, loaded = result.stdout.strip().rsplit(" ", 1)
-        return state, int(loaded)
+        return _assemble_in_a_fresh_process(tmp_path)
 
     cold, loaded = assemble()
     assert loaded == 0 and list(tmp_path.glob("*.jaxclear"))
@@ -185,16 +195,7 @@ def test_an_edit_anywhere_in_the_package_changes_the_key(tmp_path):
     store = tmp_path / "store"
 
     def assemble():
-        result = subprocess.run(
-            [sys.executable, "-c", ASSEMBLE, str(store)],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            env={**__import__("os").environ, "PYTHONPATH": str(copy)},
-            cwd=tmp_path,  # not the checkout: python -c puts the working folder first on the path
-        )
-        assert result.returncode == 0, result.stderr
-        return int(result.stdout.strip().rsplit(" ", 1)[1])
+        return _assemble_in_a_fresh_process(store, package=copy)[1]
 
     assert assemble() == 0
     with open(copy / "jaxclear" / "solve" / "_extremes.py", "a", encoding="utf-8") as f:

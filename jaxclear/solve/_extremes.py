@@ -270,16 +270,24 @@ class Tracker(eqx.Module):
 
     def update_pair(self, t_a, v_a, t_b, v_b) -> "Tracker":
         """``update_flat(t_a, v_a).update_flat(t_b, v_b)`` (t_a < t_b: a step's midpoint and
-        end), the same values from one pass over both samples: the two parabola vertices, the
-        extremes and the trapezoids as arrays over the pair (half the kernels of two updates)."""
-        t_a, t_b = jnp.asarray(t_a, dtype=float), jnp.asarray(t_b, dtype=float)
-        # rows: the update at t_a, then the one at t_b
-        t_e = jnp.stack([self.times[0], self.times[1]])[:, None]
-        t_l = jnp.stack([self.times[1], t_a])[:, None]
-        t_n = jnp.stack([t_a, t_b])[:, None]
-        earlier = jnp.stack([self.recent[0], self.recent[1]])
-        last = jnp.stack([self.recent[1], v_a])
-        v = jnp.stack([v_a, v_b])
+        end), the same values from one pass over both samples (half the kernels of two updates)."""
+        return self._update_rows(jnp.stack([t_a, t_b]), jnp.stack([v_a, v_b]))
+
+    def update_flat(self, t, v) -> "Tracker":
+        """``update`` with the observation as its flat vector (``_Layout.flat``)."""
+        return self._update_rows(jnp.reshape(t, (1,)), v[None])
+
+    def _update_rows(self, ts, vs) -> "Tracker":
+        """The tracker after the samples ``vs`` (K, k) at the increasing times ``ts`` (K,), in
+        one pass: the K parabola vertices, extremes and trapezoids as arrays over the rows."""
+        ts = jnp.asarray(ts, dtype=float)
+        # row i: the update at ts[i], after the two samples before it
+        times = jnp.concatenate([self.times, ts])
+        values = jnp.concatenate([self.recent, vs])
+        t_e, t_l, t_n = times[:-2, None], times[1:-1, None], times[2:, None]
+        earlier, last, v = values[:-2], values[1:-1], values[2:]
+        # the vertex of the parabola through (t_e, earlier), (t_l, last), (t_n, v) where the
+        # middle value is a local extremum and lies in the window; else the new value
         spaced = (t_l > t_e) & (t_n > t_l)
         width_0 = jnp.where(spaced, t_l - t_e, 1.0)
         width_1 = jnp.where(spaced, t_n - t_l, 1.0)
@@ -288,77 +296,40 @@ class Tracker(eqx.Module):
         curvature = (d2 - d1) / (width_0 + width_1)
         extremum = spaced & ((last - earlier) * (v - last) < 0) & (curvature != 0)
         safe = jnp.where(extremum, curvature, 1.0)
-        s = jnp.clip(0.5 * width_0 - d1 / (2 * safe), 0.0, width_0 + width_1)
+        s = jnp.clip(0.5 * width_0 - d1 / (2 * safe), 0.0, width_0 + width_1)  # vertex - t_e
         vertex = earlier + d1 * s + safe * s * (s - width_0)
         use = extremum & (t_e + s >= self.start)
-        inside = t_n >= self.start
-        new = jnp.where(inside, v, jnp.nan)
-        between = jnp.where(use, vertex, new)
-        candidates = jnp.concatenate([new, between])  # NaN: not in the window
+        new = jnp.where(t_n >= self.start, v, jnp.nan)
+        # both the new value and the refined one count (the refined one only near an extremum);
+        # NaN: not in the window
+        candidates = jnp.concatenate([new, jnp.where(use, vertex, new)])
         width = jnp.maximum(t_n[:, 0] - jnp.maximum(t_l[:, 0], self.start), 0.0)
         sq = self.layout.squares
         square = 0.5 * (last[:, sq] ** 2 + v[:, sq] ** 2)
-        onsets, events, counts = self._contact_events(t_a, v_a)
-        halfway = eqx.tree_at(
-            lambda x: (x.times, x.recent, x.contact_onset, x.events, x.event_count),
-            self,
-            (jnp.stack([self.times[1], t_a]), last, onsets, events, counts),
-        )
-        onsets, events, counts = halfway._contact_events(t_b, v_b)
+        duration, square_integral = self.duration, self.square_integral
+        for i in range(ts.shape[0]):
+            duration = duration + width[i]
+            square_integral = square_integral + width[i] * square[i]
+        tracker = self
+        for i in range(ts.shape[0]):  # contact events in order
+            onsets, events, counts = tracker._contact_events(ts[i], vs[i])
+            tracker = eqx.tree_at(
+                lambda x: (x.times, x.recent, x.contact_onset, x.events, x.event_count),
+                tracker,
+                (times[i + 1 : i + 3], values[i + 1 : i + 3], onsets, events, counts),
+            )
         return Tracker(
             layout=self.layout,
             start=self.start,
-            duration=self.duration + width[0] + width[1],
+            duration=duration,
             maximum=jnp.fmax(self.maximum, jnp.nanmax(candidates, axis=0)),
             minimum=jnp.fmin(self.minimum, jnp.nanmin(candidates, axis=0)),
-            square_integral=self.square_integral + width[0] * square[0] + width[1] * square[1],
-            times=jnp.stack([t_a, t_b]),
-            recent=v,
-            contact_onset=onsets,
-            events=events,
-            event_count=counts,
-        )
-
-    def update_flat(self, t, v) -> "Tracker":
-        """``update`` with the observation as its flat vector (``_Layout.flat``)."""
-        t = jnp.asarray(t, dtype=float)
-        t0, t1 = self.times[0], self.times[1]
-        earlier, last = self.recent[0], self.recent[1]
-        # the vertex of the parabola through (t0, earlier), (t1, last), (t, v) where the middle
-        # value is a local extremum and lies in the window; else the new value
-        spaced = (t1 > t0) & (t > t1)
-        width_0 = jnp.where(spaced, t1 - t0, 1.0)
-        width_1 = jnp.where(spaced, t - t1, 1.0)
-        d1 = (last - earlier) / width_0
-        d2 = (v - last) / width_1
-        curvature = (d2 - d1) / (width_0 + width_1)
-        extremum = spaced & ((last - earlier) * (v - last) < 0) & (curvature != 0)
-        safe = jnp.where(extremum, curvature, 1.0)
-        s = jnp.clip(0.5 * width_0 - d1 / (2 * safe), 0.0, width_0 + width_1)  # vertex - t0
-        vertex = earlier + d1 * s + safe * s * (s - width_0)
-        use = extremum & (t0 + s >= self.start)
-        inside = t >= self.start
-        between = jnp.where(use, vertex, jnp.where(inside, v, jnp.nan))
-        new = jnp.where(inside, v, jnp.nan)
-        # both the new value and the refined one count (the refined one only near an extremum)
-        hi = lambda old, x: jnp.where(jnp.isnan(x), old, jnp.maximum(old, x))  # noqa: E731
-        lo = lambda old, x: jnp.where(jnp.isnan(x), old, jnp.minimum(old, x))  # noqa: E731
-        width = jnp.maximum(t - jnp.maximum(t1, self.start), 0.0)
-        sq = self.layout.squares
-        square = 0.5 * (last[sq] ** 2 + v[sq] ** 2)
-        onsets, events, counts = self._contact_events(t, v)
-        return Tracker(
-            layout=self.layout,
-            start=self.start,
-            duration=self.duration + width,
-            maximum=hi(hi(self.maximum, new), between),
-            minimum=lo(lo(self.minimum, new), between),
-            square_integral=self.square_integral + width * square,
-            times=jnp.stack([t1, t]),
-            recent=jnp.stack([last, v]),
-            contact_onset=onsets,
-            events=events,
-            event_count=counts,
+            square_integral=square_integral,
+            times=times[-2:],
+            recent=values[-2:],
+            contact_onset=tracker.contact_onset,
+            events=tracker.events,
+            event_count=tracker.event_count,
         )
 
     def extremes(self) -> Extremes:
