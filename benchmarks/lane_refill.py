@@ -36,22 +36,8 @@ import os
 import sys
 import time
 
-RPM = 5000.0
-
-
-def _mechanism(case):
-    from jaxclear.contact import LankaraniNikravesh
-    from jaxclear.friction import LuGre, ModifiedCoulomb
-    from jaxclear.mechanisms import slider_crank
-
-    return slider_crank(
-        rpm=RPM,
-        clearance_joints="B" if case == "a" else "O,A,B",
-        clearance=5e-4,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=ModifiedCoulomb(0.01) if case == "a" else LuGre(),
-        gravity=False,
-    )
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_ensemble import RPM, _mechanism  # noqa: E402  (the same cases a and c)
 
 
 def _values(mechanism, n, seed):
