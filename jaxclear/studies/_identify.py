@@ -274,6 +274,8 @@ class _Windows:
             compilation for all windows). ts: data times (N,). data: (S, N) measured signals. inv_sigma: (S,).
         noise: σ per signal.
         ends: end of each window, s. masks: (N,) 1 inside each window. counts: residuals in each.
+        probed: the first simulation's program is compiled (``_automatic_windows`` ran it):
+            ``residuals`` uses it.
     """
 
     static: tuple
@@ -286,6 +288,7 @@ class _Windows:
     ends: list[float]
     masks: list[jax.Array]
     counts: list[float]
+    probed: bool = False
 
     @classmethod
     def of(cls, mechanism, data, specs, config, t0, t_end, horizons) -> "_Windows":
@@ -324,6 +327,29 @@ class _Windows:
         return _residuals_and_jacobian(
             mechanism, params, names, solver, jnp.asarray(u), t_start, t1, ts, data, inv_sigma, mask
         )
+
+    def residuals(self, u, k: int) -> np.ndarray | None:
+        """Residuals (S·N,) over window ``k`` without the Jacobian, from the first simulation's
+        program (compiled already; 3.4 times cheaper than ``residuals_and_jacobian`` with three
+        parameters); ``None`` when that program was not compiled (``probed`` False)."""
+        if not self.probed:
+            return None
+        mechanism, params, names, solver = self.static
+        r, ok, _, _ = _first_simulation(
+            mechanism,
+            params,
+            names,
+            solver,
+            jnp.asarray(u),
+            self.t_start,
+            jnp.asarray(self.ends[k]),
+            self.ts,
+            self.data,
+            self.inv_sigma,
+            FIRST_CONTACTS,
+        )
+        mask = np.asarray(self.masks[k])[None, :]
+        return np.where(bool(ok), np.asarray(r) * mask, np.inf).ravel()
 
     def _window(self, k: int) -> tuple:
         return (
@@ -474,13 +500,13 @@ def _global_scan(windows: _Windows, specs, settings: FitSettings, bar: Progress,
     return _Scan(starts, first, separated, table, note)
 
 
-CONTINUATION_PATIENCE = 5
+CONTINUATION_PATIENCE = 3
 """Levenberg–Marquardt iterations after which a window longer than the first stops if its loss is
 still above ``LOSS_GROWTH`` times the best of the shorter windows (it would be dropped). Started
-from the shorter windows' estimate, every window kept in the held-out fits of
-docs/identification.md was below that bound after at most 2 iterations; the three-unknown record's
-30 ms window, where the model parts from the data, was still at 4.0 against 0.94 after 12 of its
-18 iterations, all of them spent for nothing."""
+from the shorter windows' estimate, every window kept in the fits of docs/identification.md was
+below that bound after 1 iteration (2 in an earlier version of the fit); a window where the model
+parts from the data costs the most Jacobians of a fit (the longest solves): the three-unknown
+record's 30 ms window took 12 of that fit's 53 evaluations, 33 of its 56 s, with patience 5."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -674,9 +700,13 @@ def _covariance(specs, jac_u, dtheta, scale: float) -> tuple[np.ndarray, str]:
 
 def _whole_record(windows: _Windows, data: Measurements, u) -> tuple[float, dict[str, np.ndarray]]:
     """The model at ``u`` over the whole record, also past the windows used (for plots and
-    fit.csv): (loss over the whole record, ``{signal: fitted (N,)}``)."""
+    fit.csv): (loss over the whole record, ``{signal: fitted (N,)}``); without the Jacobian where
+    the first simulation's program is compiled (the last window's Jacobian took a fifth of a 200
+    rpm fit's time)."""
     last = len(windows.ends) - 1
-    r_all = np.asarray(windows.residuals_and_jacobian(u, last)[0])
+    r_all = windows.residuals(u, last)
+    if r_all is None:
+        r_all = np.asarray(windows.residuals_and_jacobian(u, last)[0])
     fitted_r = r_all.reshape(len(windows.names), -1)
     fitted = {
         n: np.asarray(data.signals[n], dtype=float) + fitted_r[i] * windows.noise[n]
@@ -796,6 +826,8 @@ def identify(
     else:
         horizons, window_note = settings.horizons, ""
     windows = _Windows.of(mechanism, data, specs, config, t0, t_end, horizons)
+    probed = settings.horizons is None and bool(contact_joints(mechanism))
+    windows = dataclasses.replace(windows, probed=probed)
 
     history: list[dict[str, Any]] = []
 
