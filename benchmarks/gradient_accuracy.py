@@ -269,12 +269,18 @@ def run_case(
         variants.append(("default", "auto", "reverse"))
     ad = {}
     for label, solver, reverse_adjoint in variants:
-        # forward mode: jacfwd of the responses, one pass for all parameters
-        jac = jax.jit(jax.jacfwd(lambda p: outputs(p, solver, "forward"), has_aux=True))
+        # forward mode: jacfwd of the responses, one pass for all parameters; the loss's gradient
+        # pairs them with the responses of the same evaluation (the primal output of the jvp, as
+        # in jax.jacfwd of a loss), not with those of a separate undifferentiated solve
+        def with_responses(p, solver=solver):
+            out, n = outputs(p, solver, "forward")
+            return out, (out, n)
+
+        jac = jax.jit(jax.jacfwd(with_responses, has_aux=True))
         start = time.perf_counter()
-        d_out, n_fwd = jac(p0)
+        d_out, (out_fwd, n_fwd) = jac(p0)
         first_fwd = time.perf_counter() - start
-        out_fwd = np.asarray(jax.jit(lambda p: outputs(p, solver))(p0)[0])
+        out_fwd = np.asarray(out_fwd)
         ad[(label, "forward")] = (
             {k: loss_gradient(out_fwd, np.asarray(d_out[k]), target, weights) for k in names},
             int(n_fwd),

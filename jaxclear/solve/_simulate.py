@@ -280,7 +280,9 @@ def differentiable_simulate(
 ) -> Trajectory:
     """``_simulate_core`` whose derivatives come from the error-controlled sensitivity solve
     (``jaxclear.solve._sensitivity``): a ``jax.custom_jvp`` for ``mode="forward"`` (``jax.jvp``,
-    ``jax.jacfwd``: one tangent per jvp), a ``jax.custom_vjp`` for ``mode="reverse"`` (``jax.grad``,
+    ``jax.jacfwd``: up to ``REVERSE_SENSITIVITY_MAX`` perturbed scalars one solve along all of
+    them, shared by jacfwd's directions; above, one tangent per jvp), a ``jax.custom_vjp`` for
+    ``mode="reverse"`` (``jax.grad``,
     ``jax.vjp``, ``jax.jacrev``: the forward pass integrates one tangent per perturbed scalar of the
     mechanism and y0, the backward pass contracts them with the cotangent). Without
     differentiation either is the plain solve."""
@@ -322,6 +324,45 @@ def differentiable_simulate(
         return traj, _inexact_leaves(tangent)
 
     args = (dynamic, y0, grid, t0, t1, start)
+    is_zero = lambda x: isinstance(x, SymbolicZero)  # noqa: E731
+
+    def perturbed(primals, tangents):
+        """The perturbed leaves: (values, their tree, tangents, flags, y0 perturbed, p scalars)."""
+        dynamic, y0 = primals[:2]
+        d_dynamic, d_y0 = tangents[:2]
+        values, d_def = jax.tree_util.tree_flatten(dynamic)
+        d_leaves = jax.tree_util.tree_leaves(d_dynamic, is_leaf=is_zero)
+        flags = [not _is_zero(d) for d in d_leaves]
+        y0_flag = y0 is not None and not _is_zero(d_y0)
+        p = sum(int(np.prod(v.shape)) for v, f in zip(values, flags) if f)
+        p += int(y0.size) if y0_flag else 0
+        return values, d_def, d_leaves, flags, y0_flag, p
+
+    def jvp_contracted(primals, tangents):
+        # the sensitivities along every perturbed scalar, computed from the primals alone (one
+        # augmented solve: under jax.jacfwd's vmap it stays unbatched, so all directions share
+        # it), then contracted with the tangents: linear in them, so JAX also transposes the
+        # contraction for reverse mode (the solve itself, a while loop, is never transposed).
+        # The trajectory returned is the augmented solve's, the one its tangents belong to (as
+        # reverse mode's): a loss of it and its tangents is differentiated consistently, and no
+        # plain solve is needed.
+        dynamic, y0 = primals[:2]
+        d_y0 = tangents[1]
+        _check_no_time_tangents(tangents[2:])
+        values, d_def, d_leaves, flags, y0_flag, p = perturbed(primals, tangents)
+        if p == 0:
+            traj = primal(*primals)
+            zeros = [None if x is None else jnp.zeros_like(x) for x in _inexact_leaves(traj)]
+            return traj, _with_integer_zeros(traj, zeros)
+        units = _unit_directions(values + ([y0] if y0_flag else []), flags + [y0_flag], p)
+        directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
+        dy0 = units[-1] if y0_flag else None
+        traj, sens = tangent_solve(dynamic, y0, directions, dy0, *primals[2:])
+        chosen = [d for d, f in zip(d_leaves, flags) if f] + ([d_y0] if y0_flag else [])
+        along = jnp.concatenate([jnp.reshape(d, (-1,)) for d in chosen])
+        out = [None if s is None else jnp.tensordot(along, s, axes=1) for s in sens]
+        return traj, _with_integer_zeros(traj, out)
+
     if mode == "forward":
         fn = jax.custom_jvp(primal)
 
@@ -329,19 +370,24 @@ def differentiable_simulate(
             dynamic, y0 = primals[:2]
             d_dynamic, d_y0 = tangents[:2]
             _check_no_time_tangents(tangents[2:])
+            p = perturbed(primals, tangents)[-1]
+            if p <= REVERSE_SENSITIVITY_MAX:
+                # one augmented solve along every perturbed scalar, shared by jax.jacfwd's
+                # directions (FORWARD_MERGED in docs/differentiation.md)
+                return jvp_contracted(primals, tangents)
             # None along the leaves without a tangent: the sensitivity solve does not linearise
             # along them
             directions = jax.tree_util.tree_map(
                 lambda x, d: None if _is_zero(d) else d[None],
                 dynamic,
                 d_dynamic,
-                is_leaf=lambda x: isinstance(x, SymbolicZero),
+                is_leaf=is_zero,
             )
             dy0 = None if y0 is None or _is_zero(d_y0) else d_y0[None]
             # the trajectory from the plain solve: it does not depend on the tangents, so under
             # jax.jacfwd (a vmap of jax.jvp over them) it stays unbatched, as jacfwd requires, and
-            # equals an undifferentiated call; the tangents from the augmented solve (one per
-            # direction: jacfwd batches them, each with its own steps)
+            # equals an undifferentiated call; the tangent from the augmented solve along this
+            # direction (jacfwd batches them, each with its own steps)
             traj = primal(*primals)
             _, tangents = tangent_solve(dynamic, y0, directions, dy0, *primals[2:])
             return traj, _with_integer_zeros(traj, [None if t is None else t[0] for t in tangents])
@@ -351,35 +397,7 @@ def differentiable_simulate(
 
     if mode == "either":
         fn = jax.custom_jvp(primal)
-
-        def jvp_either(primals, tangents):
-            # the sensitivities along every perturbed scalar, computed from the primals alone,
-            # then contracted with the tangents: linear in them, so JAX transposes the contraction
-            # for reverse mode (the solve itself, a while loop, is never transposed)
-            dynamic, y0 = primals[:2]
-            d_dynamic, d_y0 = tangents[:2]
-            _check_no_time_tangents(tangents[2:])
-            is_zero = lambda x: isinstance(x, SymbolicZero)  # noqa: E731
-            values, d_def = jax.tree_util.tree_flatten(dynamic)
-            d_leaves = jax.tree_util.tree_leaves(d_dynamic, is_leaf=is_zero)
-            flags = [not _is_zero(d) for d in d_leaves]
-            y0_flag = y0 is not None and not _is_zero(d_y0)
-            traj = primal(*primals)
-            p = sum(int(np.prod(v.shape)) for v, f in zip(values, flags) if f)
-            p += int(y0.size) if y0_flag else 0
-            if p == 0:
-                zeros = [None if x is None else jnp.zeros_like(x) for x in _inexact_leaves(traj)]
-                return traj, _with_integer_zeros(traj, zeros)
-            units = _unit_directions(values + ([y0] if y0_flag else []), flags + [y0_flag], p)
-            directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
-            dy0 = units[-1] if y0_flag else None
-            _, sens = tangent_solve(dynamic, y0, directions, dy0, *primals[2:])
-            chosen = [d for d, f in zip(d_leaves, flags) if f] + ([d_y0] if y0_flag else [])
-            along = jnp.concatenate([jnp.reshape(d, (-1,)) for d in chosen])
-            out = [None if s is None else jnp.tensordot(along, s, axes=1) for s in sens]
-            return traj, _with_integer_zeros(traj, out)
-
-        fn.defjvp(jvp_either, symbolic_zeros=True)
+        fn.defjvp(jvp_contracted, symbolic_zeros=True)
         return fn(*args)
 
     fn = jax.custom_vjp(primal)
