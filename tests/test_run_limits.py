@@ -77,6 +77,24 @@ def test_max_steps_beyond_the_bound_is_refused(tmp_path, capsys, no_solve):
     assert "--max-steps" in line and "at most 1000000000" in line
 
 
+@pytest.mark.parametrize("value", ["1e-320", "0.005"])
+def test_speed_below_the_bound_is_refused(value, tmp_path, capsys, no_solve):
+    # a subnormal speed made the revolution's duration infinite: "t1 must be finite", exit 1
+    line = refused(["run", f"--rpm={value}"], tmp_path / "out", capsys)
+    assert "--rpm" in line and "at least 0.01" in line
+
+
+def test_speed_at_the_bound_goes_on_to_solve(tmp_path, no_solve):
+    with pytest.raises(Solved):
+        cli.main(["run", "--rpm=0.01", "--quiet", "--out", str(tmp_path / "out")])
+
+
+@pytest.mark.parametrize("value", ["65", "-1"])
+def test_spread_outside_its_range_is_refused(value, tmp_path, capsys, no_solve):
+    line = refused(["run", f"--spread={value}"], tmp_path / "out", capsys)
+    assert "--spread" in line and "to 64" in line
+
+
 @pytest.fixture(scope="module")
 def three_joints():
     return mechanisms.slider_crank(clearance_joints=("O", "A", "B"))

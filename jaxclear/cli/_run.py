@@ -61,6 +61,10 @@ from ._settings import (
 MODES_CSV = "modes.csv"
 REVOLUTIONS_CSV = "revolutions.csv"
 
+MAX_SPREAD = 64
+"""Most ``--spread`` companions. They are one vectorised batch stepped together, so a revolution
+costs about K + 1 solves and K times the memory of the nominal's results; the spread's min/max
+over tens of companions already shows whether a figure forks (docs/outputs.md)."""
 WARMUP_FRACTION = 1e-3
 """The warm-up (compile) call integrates this fraction of the horizon; see ``timed_revolutions``."""
 
@@ -141,7 +145,7 @@ def add_parser(subparsers, parser_class) -> argparse.ArgumentParser:
         help="also solve K companions, started from the initial state perturbed at the rounding "
         "level (1e-12 relative), in one vectorised batch; run.json's spread says how far each "
         "figure's median over the kept revolutions moves, and marks the ones that move more than "
-        "2 %% as sensitive (default 0: none; docs/outputs.md)",
+        f"2 %% as sensitive (default 0: none; at most {MAX_SPREAD}; docs/outputs.md)",
     )
     run.add_argument(
         "--no-progress",
@@ -347,8 +351,11 @@ def _run(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
-    if args.spread < 0:
-        raise UsageError(f"--spread {args.spread}: give 0 (no companions) or more")
+    if not 0 <= args.spread <= MAX_SPREAD:
+        raise UsageError(
+            f"--spread {args.spread}: give 0 (no companions) to {MAX_SPREAD} (the companions are "
+            "one vectorised batch stepped together: its time and memory grow with their number)"
+        )
     fast_compile = apply_fast_compile(
         config["solver"]["fast_compile"]
     )  # before JAX's backend starts

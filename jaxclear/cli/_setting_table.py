@@ -35,6 +35,13 @@ MAX_RPM = 1e5
 the square of the speed, 400 times above the 5000 rpm benchmark's. A larger value is almost surely
 a unit slip (rad/s, rev/h) and would only make the solver grind."""
 
+MIN_RPM = 1e-2
+"""Lower bound of ``rpm`` (rev/min). The solver's steps follow the contacts' time scales
+(microseconds to milliseconds), not the crank's, so a revolution costs steps in proportion to its
+duration: at 0.01 rev/min one revolution is 6000 s of contact dynamics, about 1000 times the
+200 rpm records of docs/identification.md. Below it a linkage is quasi-static, and a subnormal
+value overflows the revolution's duration to infinity."""
+
 MAX_HORIZON_REVOLUTIONS = 1000
 """Upper bound of a fixed ``revolutions``. ``jaxclear run`` solves one revolution at a time, about
 0.1 s each, and keeps every revolution's results in memory. At 1e9 revolutions each revolution's
@@ -88,7 +95,7 @@ class Setting:
         help: one-line description.
         flag: command-line option (``None``: config file only).
         check: ``"positive"``, ``"nonnegative"``, ``"finite"``, ``"fraction"`` (in (0, 1)),
-            ``"rpm"`` (positive, at most ``MAX_RPM``), ``"revolutions"`` (positive, at most
+            ``"rpm"`` (from ``MIN_RPM`` to ``MAX_RPM``), ``"revolutions"`` (positive, at most
             ``MAX_HORIZON_REVOLUTIONS``), ``"steps"`` (positive, at most ``MAX_STEPS``) or
             ``None``.
         flag_help: help of the flag if it differs from ``help``.
@@ -175,7 +182,7 @@ SETTINGS: tuple[Setting, ...] = (
         float,
         _rpm_default,
         "rev/min",
-        f"speed of the driven body (at most {MAX_RPM:g}: larger values are unit slips); required for custom",
+        f"speed of the driven body ({MIN_RPM:g} to {MAX_RPM:g}: larger values are unit slips); required for custom",
         "--rpm",
         "rpm",
     ),

@@ -8,7 +8,14 @@ from collections.abc import Mapping
 
 from ..solve import PRESETS
 from ._common import UsageError
-from ._setting_table import MAX_HORIZON_REVOLUTIONS, MAX_RPM, MAX_STEPS, SETTINGS, Setting
+from ._setting_table import (
+    MAX_HORIZON_REVOLUTIONS,
+    MAX_RPM,
+    MAX_STEPS,
+    MIN_RPM,
+    SETTINGS,
+    Setting,
+)
 
 SECTIONS = tuple(dict.fromkeys(s.section for s in SETTINGS))
 BY_LABEL = {(s.section, s.key): s for s in SETTINGS}
@@ -132,6 +139,12 @@ def check_value(s: Setting, value, source: str) -> None:
         raise UsageError(
             f"{source} = {value:g} rev/min is implausible (at most {MAX_RPM:g}; linkages run at 200-6000 rpm); "
             "give the speed in revolutions per minute"
+        )
+    if s.check == "rpm" and value < MIN_RPM:
+        raise UsageError(
+            f"{source} = {value:g} rev/min is too slow to simulate (at least {MIN_RPM:g}: each "
+            "revolution's steps follow the contacts' millisecond time scales); give the speed in "
+            "revolutions per minute"
         )
     if s.check == "nonnegative" and not value >= 0:
         raise UsageError(f"{source} must be zero or positive, got {value!r}")

@@ -188,7 +188,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
 
 def _check_admissible(mechanism, name: str, values: np.ndarray) -> None:
     """Refuse, before anything is solved, values that ``jaxclear run`` would refuse for the same
-    parameter (rpm: positive and at most ``MAX_RPM``) or that lie outside the parameter's
+    parameter (rpm: from ``MIN_RPM`` to ``MAX_RPM``) or that lie outside the parameter's
     admissible range (a negative clearance, a restitution above 1, ...).
 
     Raises:
