@@ -91,21 +91,16 @@ many it uses diffrax's discrete adjoint (``SolverConfig.reverse_adjoint``), whos
 controlled (docs/differentiation.md, "Many parameters")."""
 
 
-def _auto_mode(tree) -> str:
-    """``adjoint="auto"``'s sensitivity mode: ``"forward"`` under ``jax.jvp``/``jax.jacfwd``,
-    ``"reverse"`` under ``jax.grad``/``jax.vjp``/``jax.jacrev``, and ``"either"`` when the leaves
-    show neither (the transformation is applied outside a ``jax.jit`` of the caller, which hides
-    it): a ``jax.custom_jvp`` that integrates one tangent per perturbed scalar and contracts them
-    with the tangents, so that both modes go through it."""
-    if _has_forward_mode_tracer(tree):
-        return "forward"
+def _tracer_kinds(tree) -> set[type]:
+    """The tracer types on the array leaves of ``tree``, seen through ``vmap`` (a batching tracer
+    holds the value it batches in ``val``)."""
+    kinds: set[type] = set()
     for leaf in jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array)):
         x = leaf
         while isinstance(x, jax.core.Tracer):
-            if isinstance(x, getattr(ad, "LinearizeTracer", ())):
-                return "reverse"
+            kinds.add(type(x))
             x = getattr(x, "val", None)
-    return "either"
+    return kinds
 
 
 def _has_forward_mode_tracer(tree) -> bool:
@@ -114,13 +109,22 @@ def _has_forward_mode_tracer(tree) -> bool:
     A transformation applied outside a ``jax.jit`` of the caller is invisible here (the leaves
     are then jit tracers); ``adjoint="forward"`` covers that case.
     """
-    for leaf in jax.tree_util.tree_leaves(eqx.filter(tree, eqx.is_array)):
-        x = leaf
-        while isinstance(x, jax.core.Tracer):
-            if isinstance(x, ad.JVPTracer):
-                return True
-            x = getattr(x, "val", None)  # a vmap tracer holds the value it batches
-    return False
+    return any(issubclass(k, ad.JVPTracer) for k in _tracer_kinds(tree))
+
+
+def _auto_mode(tree) -> str:
+    """``adjoint="auto"``'s sensitivity mode: ``"forward"`` under ``jax.jvp``/``jax.jacfwd``,
+    ``"reverse"`` under ``jax.grad``/``jax.vjp``/``jax.jacrev``, and ``"either"`` when the leaves
+    show neither (the transformation is applied outside a ``jax.jit`` of the caller, which hides
+    it): a ``jax.custom_jvp`` that integrates one tangent per perturbed scalar and contracts them
+    with the tangents, so that both modes go through it."""
+    kinds = _tracer_kinds(tree)
+    if any(issubclass(k, ad.JVPTracer) for k in kinds):
+        return "forward"
+    linearize = getattr(ad, "LinearizeTracer", None)
+    if linearize is not None and any(issubclass(k, linearize) for k in kinds):
+        return "reverse"
+    return "either"
 
 
 def make_adjoint(adjoint, traced_tree=None, config=None) -> diffrax.AbstractAdjoint:
