@@ -4,6 +4,7 @@
 Usage:
     python benchmarks/lane_refill.py [--case a,c] [--members 128] [--lanes 8,32] [--repeats 2]
         [--revolutions 2] [--cores 1] [--events 256] [--json PATH]
+        [--engine lockstep,refill] [--chunk 64]
 
 The benchmark slider–crank at 5000 rpm (Lankarani–Nikravesh c_e = 0.9, no gravity; case a:
 clearance joint B, modified Coulomb μ = 0.01; case c: O, A, B, LuGre), as in
@@ -23,6 +24,15 @@ One process (``XLA_FLAGS`` as the ``jaxclear`` command sets them, one CPU device
   longest-processing-time-first rule that leaves the shortest tail).
 Both return the same per member: steps, result, y(t_final) and the whole ``Extremes`` (a
 lockstep member returning less would let XLA drop the unused part of its solver state).
+
+With ``--engine``: ``run_ensemble`` itself (``jaxclear.studies``, the work of an ensemble member:
+the member's solve with 360 saved points per revolution, its ideal mechanism's solve, the
+statistics, deviations and contact modes) with ``EnsembleSettings.engine`` set to each engine
+named, ``order="cost"`` (the default): for each size S in ``--lanes``, "lockstep" in chunks of S
+members and "refill" on S lanes in chunks of ``--chunk`` members; and "lockstep" in chunks of
+``--chunk`` (the default settings). Each setting runs once on ``max(chunk)`` other members
+(compilation), then timed on ``--members`` members; members/s, the ratios refill / lockstep of the
+same round, and how far the two engines' member tables part (statistics of the same member).
 Each program is compiled and run once on other members of the same count (warm-up), then timed;
 ``--repeats`` rounds of all timed runs, interleaved, so that a load on the machine falls on all of
 them alike. Prints members per second, the ratios lanes / lockstep per round, the loop iterations
@@ -72,6 +82,106 @@ def _lockstep_member(v, mechanism, names, config, t1, start, events):
         "t_final": traj.t_final,
         "y_final": traj.y_final,
         "extremes": traj.extremes,
+    }
+
+
+def run_engines(case, a):
+    """``run_ensemble`` with each engine of ``--engine`` (module doc)."""
+    import jax
+    import numpy as np
+
+    import jaxclear
+    from jaxclear.studies import EnsembleSettings
+
+    mech = _mechanism(case)
+    period = 60.0 / RPM
+    t1, start = a.revolutions * period, period
+    points = int(round(a.revolutions * 360)) + 1
+    n = a.members
+    device = jax.local_devices()[:1]
+    options = dict(statistics_start=start, num_points=points, contact_events=a.events)
+    settings = {}
+    for size in a.sizes:
+        for engine in a.engines:
+            chunk = size if engine == "lockstep" else a.chunk
+            settings[(engine, size)] = (chunk, size)
+    if "lockstep" in a.engines:
+        settings[("lockstep", a.chunk)] = (a.chunk, a.chunk)
+
+    def run(key, members, seed):
+        chunk, lanes = settings[key]
+        s = EnsembleSettings(
+            chunk_size=chunk, devices=device, progress=False, engine=key[0], lanes=lanes
+        )
+        return jaxclear.run_ensemble(mech, _values(mech, members, seed), t1, settings=s, **options)
+
+    config = jaxclear.recommended_solver(mech)
+    print(
+        f"\ncase {case}: run_ensemble, {config.method}, {n} members, {a.revolutions:g} "
+        f"revolutions, {points} points, {a.events} events per joint"
+    )
+    compile_s = {}
+    for key in settings:
+        t = time.perf_counter()
+        run(key, settings[key][0], 1)
+        compile_s[key] = time.perf_counter() - t
+    print(
+        "compile + first chunk, s: "
+        + ", ".join(
+            f"{k[0]} {'chunk' if k[0] == 'lockstep' else 'lanes'} {k[1]}: {v:.1f}"
+            for k, v in compile_s.items()
+        )
+    )
+    rates, tables = {}, {}
+    for _ in range(a.repeats):
+        for key in settings:
+            t = time.perf_counter()
+            r = run(key, n, 0)
+            rates.setdefault(key, []).append(n / (time.perf_counter() - t))
+            tables.setdefault(key, r)
+    print(f"{'engine':>9} {'chunk':>5} {'lanes':>5} {'members/s per round':>20}  ratio per round")
+    for key in settings:
+        chunk, lanes = settings[key]
+        ratio = ""
+        if key[0] == "refill" and ("lockstep", key[1]) in rates:
+            mine = np.asarray(rates[key]) / np.asarray(rates[("lockstep", key[1])])
+            ratio += f" /lockstep chunk {key[1]} " + " ".join(f"{x:.2f}" for x in mine)
+        if key[0] == "refill" and ("lockstep", a.chunk) in rates and key[1] != a.chunk:
+            mine = np.asarray(rates[key]) / np.asarray(rates[("lockstep", a.chunk)])
+            ratio += f" /lockstep chunk {a.chunk} " + " ".join(f"{x:.2f}" for x in mine)
+        lanes_text = "-" if key[0] == "lockstep" else str(lanes)
+        print(
+            f"{key[0]:>9} {chunk:5d} {lanes_text:>5} "
+            f"{' '.join(f'{x:6.2f}' for x in rates[key]):>20} {ratio}"
+        )
+    # each refilled run against the lockstep run of the same vector width (chunk = lanes): the
+    # programs then round alike; across widths, rounding differs and impacts magnify it
+    for key in (k for k in settings if k[0] == "refill"):
+        ref_key = ("lockstep", key[1])
+        if ref_key not in tables:
+            continue
+        mine, theirs = tables[key], tables[ref_key]
+        same = mine.num_steps == theirs.num_steps
+        worst = {}
+        for name, v in mine.statistics.items():
+            u = theirs.statistics[name]
+            ok = np.isfinite(u) & np.isfinite(v)
+            if np.any(ok):
+                scale = max(float(np.max(np.abs(u[ok]))), 1e-300)  # the statistic's largest
+                worst[name] = float(np.max(np.abs(v[ok] - u[ok]))) / scale
+        top = sorted(worst.items(), key=lambda kv: -kv[1])[:3]
+        print(
+            f"refill lanes {key[1]} against lockstep chunk {key[1]}: same step count in "
+            f"{int(same.sum())} of {n} members; statistics bitwise equal in "
+            f"{sum(v == 0 for v in worst.values())} of {len(worst)}; largest differences "
+            "relative to the statistic's largest value: "
+            + ", ".join(f"{k} {v:.1e}" for k, v in top)
+        )
+    return {
+        "method": config.method,
+        "members": n,
+        "members_per_s": {f"{k[0]} {k[1]}": v for k, v in rates.items()},
+        "compile_s": {f"{k[0]} {k[1]}": v for k, v in compile_s.items()},
     }
 
 
@@ -234,8 +344,18 @@ def main():
     p.add_argument("--cores", type=int, default=1)
     p.add_argument("--events", type=int, default=256)
     p.add_argument("--json", default=None, help="also write members/s per case to this file")
+    p.add_argument(
+        "--engine",
+        default="",
+        help="time run_ensemble with these engines (lockstep,refill) instead of the solves",
+    )
+    p.add_argument("--chunk", type=int, default=64, help="--engine: refill's chunk size")
     a = p.parse_args()
     a.sizes = [int(x) for x in a.lanes.split(",") if x]
+    a.engines = [e for e in a.engine.split(",") if e]
+    for e in a.engines:
+        if e not in ("lockstep", "refill"):
+            p.error(f"--engine takes lockstep and/or refill, got {e!r}")
     for size in a.sizes:
         if a.members % size:
             p.error(f"--members must be a multiple of every size in --lanes ({size})")
@@ -252,7 +372,8 @@ def main():
         f"core(s); load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
         f"XLA_FLAGS={os.environ['XLA_FLAGS']!r}"
     )
-    figures = {case: run_case(case, a) for case in a.case.split(",")}
+    bench = run_engines if a.engines else run_case
+    figures = {case: bench(case, a) for case in a.case.split(",")}
     print(f"\nload average at the end {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     if a.json:
         with open(a.json, "w") as f:

@@ -18,11 +18,9 @@ import textwrap
 import jax
 import numpy as np
 import pytest
+from cases import one_joint_b
 
 import jaxclear
-from jaxclear.contact import LankaraniNikravesh
-from jaxclear.friction import ModifiedCoulomb
-from jaxclear.mechanisms import slider_crank
 from jaxclear.studies import EnsembleError, EnsembleSettings, draw, fit_clearance
 
 CHUNK = 4
@@ -58,14 +56,7 @@ VALUES = {
 
 @pytest.fixture(scope="module")
 def mechanism():
-    return slider_crank(
-        rpm=5000.0,
-        clearance_joints="B",
-        clearance=5e-4,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=ModifiedCoulomb(0.01),
-        gravity=False,
-    )
+    return one_joint_b()
 
 
 def _run(mechanism, values, **kw):

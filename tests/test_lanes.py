@@ -1,12 +1,18 @@
 """Lane refilling (``jaxclear.solve.solve_members``, issue 25 part 1): each member's result
-equals its own ``simulate``, members of very different cost share the lanes, a lane whose member
-is done takes the next one, and new values reuse the compiled loop.
+equals its own ``simulate`` (its saved states on the output grid and its ``Trajectory`` too),
+members of very different cost share the lanes, a lane whose member is done takes the next one,
+and new values reuse the compiled loop; ``run_ensemble`` on refilled lanes
+(``EnsembleSettings(engine="refill")``) gives each member the statistics of its own ``simulate``,
+resumes across engines and replays a member from its own program.
 
 One compiled loop for the module: the ideal benchmark slider–crank (its compilation is the
 cheapest), six members of different crank speeds, end times and statistics windows on three
 lanes, Tsit5 with a step budget that one member exceeds. The reference is ``simulate`` of each
 member alone with the same settings (one more compilation: ``t1`` and ``statistics_start`` are
-traced). A clearance-joint comparison (case a of the benchmarks, short horizon) is ``slow``.
+traced), shared by the refilled ensemble's members (same output-point count; one compilation of
+the refilled chunk). A clearance-joint comparison (case a of the benchmarks, short horizon) is
+``slow``, and so is the comparison of the refilled with the lockstep engine
+(tests/test_refill_engine.py).
 """
 
 import math
@@ -15,12 +21,12 @@ import diffrax
 import jax
 import numpy as np
 import pytest
+from cases import one_joint_b
 
 import jaxclear
-from jaxclear.contact import LankaraniNikravesh
-from jaxclear.friction import ModifiedCoulomb
 from jaxclear.mechanisms import slider_crank
 from jaxclear.solve import SolverConfig, solve_members
+from jaxclear.studies import EnsembleSettings, replay_member
 
 MAX_STEPS = 64
 """Step budget: the members below take 6–39 steps to their t1 (6–9 of them rejected, shrinking
@@ -32,6 +38,9 @@ RPM = np.array([3000.0, 5000.0, 6000.0, 4000.0, 6000.0, 5500.0])
 T1 = np.array([0.004, 0.012, 0.006, 0.02, 0.04, 0.009])  # s; member 4 exceeds MAX_STEPS
 START = 0.25 * T1  # each member's statistics window starts a quarter of the way in
 FAILING = 4
+TS = np.linspace(0.0, 0.04, 33)
+"""s: the output grid of all members, clipped to each member's t1 (several points at t1 for the
+short members; the failing member's points after its stop stay inf, as in ``simulate``)."""
 
 STATE_RTOL = 1e-12
 """y(t1) against its own ``simulate``, relative to the largest entry of y: the two programs are
@@ -48,6 +57,14 @@ EXTREMES_RTOL = 1e-9
 """Peaks and RMS integrals, relative to the largest entry of each quantity: taken at the step
 ends and midpoints and interpolated between them, so they carry the step times' rounding;
 measured: < 2e-11."""
+SAVED_RTOL = 1e-12
+"""Saved states against their own ``simulate``'s, relative to the largest entry: the same steps
+and the same dense output (diffrax's interpolation of each step), evaluated in a program vmapped
+over lanes, which may round differently; measured: 0 (bitwise equal, every member)."""
+OUTPUT_RTOL = 1e-12
+"""Accelerations, torque and multipliers at the saved states (``MemberSolutions.trajectories``)
+against ``simulate``'s, relative to the largest entry of each: the same states, the outputs
+evaluated by programs compiled apart; measured: at most 2.4e-15."""
 CONSTRAINT_ATOL = 1e-12
 """m: the constraint violation is itself rounding (1e-16 – 1e-8 m from the Baumgarte terms);
 measured difference < 1e-15 m."""
@@ -74,6 +91,7 @@ def _solve(rpm, t1, start):
         lanes=LANES,
         statistics_start=start,
         y0=y0,
+        ts=TS,
     )
 
 
@@ -81,7 +99,7 @@ def _alone(rpm, t1, start):
     return jaxclear.simulate(
         _member_mechanism(rpm),
         t1,
-        num_points=2,
+        ts=np.minimum(TS, t1),
         solver=SOLVER,
         statistics_start=start,
         throw=False,
@@ -142,6 +160,34 @@ def test_each_member_equals_its_own_simulate(lanes, alone):
         _assert_same_member(lanes, i, ref)
 
 
+def _states(traj):
+    return np.concatenate(
+        [np.asarray(traj.q), np.asarray(traj.qd), np.asarray(traj.internal_state)], axis=1
+    )
+
+
+def test_saved_states_and_trajectories_equal_their_own_simulate(lanes, alone):
+    trajectories = lanes.trajectories()
+    for i, ref in enumerate(alone):
+        np.testing.assert_array_equal(np.asarray(lanes.ts[i]), np.minimum(TS, T1[i]))
+        ys, y_ref = np.asarray(lanes.ys[i]), _states(ref)
+        reached = np.isfinite(y_ref).all(axis=1)
+        assert reached.all() == (i != FAILING)
+        assert not np.isfinite(ys[~reached]).any()  # not reached: inf, as in simulate
+        scale = np.max(np.abs(y_ref[reached]))
+        rtol = SAVED_RTOL if bool(ref.succeeded) else STOPPED_STATE_RTOL
+        np.testing.assert_allclose(ys[reached], y_ref[reached], rtol=0, atol=rtol * scale)
+        traj = trajectories.member(i)
+        assert int(traj.num_steps) == int(ref.num_steps)
+        assert bool(traj.succeeded) == bool(ref.succeeded)
+        np.testing.assert_array_equal(np.asarray(traj.y_final), np.asarray(lanes.y_final[i]))
+        np.testing.assert_array_equal(_states(traj), ys)
+        for name in ("qdd", "input_torque", "multipliers"):
+            a, b = np.asarray(getattr(traj, name))[reached], np.asarray(getattr(ref, name))[reached]
+            scale = np.max(np.abs(b))
+            np.testing.assert_allclose(a, b, rtol=0, atol=OUTPUT_RTOL * scale, err_msg=name)
+
+
 def test_members_end_at_their_own_t1_or_fail_alone(lanes, alone):
     ok = np.asarray(lanes.succeeded)
     assert ok.tolist() == [i != FAILING for i in range(len(RPM))]
@@ -196,6 +242,8 @@ def test_new_values_reuse_the_compiled_loop(lanes, alone):
         ({"rpm": [5000.0]}, 0.0, {}, "t1 must be greater than t0"),
         ({"rpm": [5000.0, 4000.0]}, [0.01], {}, "t1 must be a finite number"),
         ({"rpm": [5000.0]}, 0.01, {"y0": np.zeros((1, 3))}, r"y0 must have shape \(N, state\)"),
+        ({"rpm": [5000.0]}, 0.01, {"ts": [0.005, 0.001]}, "ts must be .* increasing"),
+        ({"rpm": [5000.0]}, 0.01, {"ts": np.zeros((1, 2))}, "ts must be a non-empty 1-D array"),
     ],
 )
 def test_bad_input_names_the_argument(values, t1, options, match):
@@ -208,20 +256,125 @@ def test_unknown_parameter_is_a_model_error():
         solve_members(_mechanism(), {"rmp": [5000.0]}, 0.01)
 
 
+ENSEMBLE = {
+    "rpm": np.array([5000.0, 4000.0, 6000.0, 5000.0, 5e5]),
+    "crank_mass": np.array([0.3, 0.4, 0.35, -1.0, 0.3]),
+}
+"""``run_ensemble``'s members: member 3's crank mass is not admissible (never solved), member 4
+(5e5 rpm) runs out of steps; in chunks of ``ENSEMBLE_CHUNK``, the second holding one member (the
+refilled chunk's padding rows are not solved)."""
+ENSEMBLE_T1, ENSEMBLE_START, ENSEMBLE_CHUNK = 0.012, 0.003, 4
+ENSEMBLE_RTOL = 1e-10
+"""A refilled ensemble member's statistics against its own ``simulate``, relative: the ensemble
+assembles each member inside its compiled solve, ``simulate`` on the host (rounding-level
+differences in y0, which the step-size control magnifies, ``TIME_RTOL``); measured: at most
+4.2e-13 (the peak torque at 6000 rpm). The constraint violation is compared absolutely
+(``CONSTRAINT_ATOL``; measured 4.4e-16 m)."""
+
+
+def _ensemble_settings(engine, **kw):
+    return EnsembleSettings(
+        chunk_size=ENSEMBLE_CHUNK,
+        devices=jax.local_devices()[:1],
+        progress=False,
+        engine=engine,
+        lanes=LANES,
+        **kw,
+    )
+
+
+def _ensemble_options():
+    return dict(statistics_start=ENSEMBLE_START, num_points=len(TS), solver=SOLVER)
+
+
+@pytest.fixture(scope="module")
+def ensemble(tmp_path_factory):
+    out = tmp_path_factory.mktemp("refill")
+    settings = _ensemble_settings("refill", out=out)
+    result = jaxclear.run_ensemble(
+        _mechanism(), ENSEMBLE, ENSEMBLE_T1, settings=settings, **_ensemble_options()
+    )
+    return result, out
+
+
+def _window_rms(t, x, start):
+    """RMS over t >= start, trapezoidal rule on the grid (as the ensemble's torque_fluctuation)."""
+    w = (t >= start).astype(float)
+    seg = 0.5 * (w[1:] + w[:-1]) * np.diff(t)
+    mean = np.sum(seg * 0.5 * (x[1:] + x[:-1])) / np.sum(seg)
+    x = x - mean
+    return np.sqrt(np.sum(seg * 0.5 * (x[1:] ** 2 + x[:-1] ** 2)) / np.sum(seg))
+
+
+def test_refilled_ensemble_members_equal_their_own_simulate(ensemble):
+    got, _ = ensemble
+    assert "outside its admissible range" in got.messages[3] and got.num_steps[3] == 0
+    assert "solve failed" in got.messages[4] and got.num_steps[4] == MAX_STEPS
+    ts = np.linspace(0.0, ENSEMBLE_T1, len(TS))
+    for i in range(3):
+        values = {k: v[i] for k, v in ENSEMBLE.items()}
+        ref = jaxclear.simulate(
+            jaxclear.with_parameters(_mechanism(), values),
+            ENSEMBLE_T1,
+            ts=ts,  # the compiled program of ``_alone``
+            solver=SOLVER,
+            statistics_start=ENSEMBLE_START,
+        )
+        assert got.status[i] == "ok" and got.num_steps[i] == int(ref.num_steps)
+        expected = {k: float(v) for k, v in jaxclear.analysis.statistics(ref).items()}
+        tau = np.asarray(ref.input_torque)
+        expected["torque_fluctuation"] = _window_rms(ts, tau, ENSEMBLE_START)  # the saved grid
+        assert set(expected) == set(got.statistics)
+        for name, value in expected.items():
+            mine = got.statistics[name][i]
+            if name == "max_constraint_violation":  # rounding itself
+                assert mine == pytest.approx(value, rel=0, abs=CONSTRAINT_ATOL), i
+            else:
+                assert mine == pytest.approx(value, rel=ENSEMBLE_RTOL, abs=0), (i, name)
+
+
+def test_refilled_ensemble_resumes_and_replays_a_member(ensemble):
+    got, out = ensemble
+    # every member is on disk: a lockstep run with the same arguments solves none of them
+    again = jaxclear.run_ensemble(
+        _mechanism(),
+        ENSEMBLE,
+        ENSEMBLE_T1,
+        settings=_ensemble_settings("lockstep", out=out),
+        **_ensemble_options(),
+    )
+    assert again.messages == got.messages
+    for name, mine in got.statistics.items():
+        np.testing.assert_array_equal(again.statistics[name], mine, err_msg=name)
+    member = 2
+    replay = replay_member(
+        _mechanism(),
+        ENSEMBLE,
+        ENSEMBLE_T1,
+        member,
+        num_steps=got.num_steps,
+        settings=_ensemble_settings("refill"),
+        **_ensemble_options(),
+    )
+    assert replay.engine == "refill" and replay.exact_chunk
+    assert replay.row["num_steps"] == got.num_steps[member]
+    for name, value in replay.statistics.items():
+        assert value == got.statistics[name][member], name  # bitwise: the run's own program
+    traj = replay.trajectory
+    assert traj.t.shape == TS.shape and bool(traj.succeeded)
+    mass = float(jaxclear.get_parameter(traj.mechanism, "crank_mass"))
+    assert mass == ENSEMBLE["crank_mass"][member]  # the member's own mechanism
+    torque = replay.trajectory_statistics["crank_torque_rms"]
+    assert torque == pytest.approx(got.statistics["crank_torque_rms"][member], rel=1e-12)
+
+
 @pytest.mark.slow  # two compilations of the clearance-joint solve (~25 s)
 def test_clearance_members_equal_their_own_simulate_before_the_contacts_fork():
     """Case a of the benchmarks (clearance joint B, Lankarani–Nikravesh, modified Coulomb) over
     0.6 ms: the first impact of each member (onset at 0.21–0.24 ms) and what follows it. The
     impact sequence magnifies rounding (docs/model.md §5b): over a revolution the members' steps
     part; this short horizon is compared as the ideal joints are."""
-    mechanism = slider_crank(
-        rpm=5000.0,
-        clearance_joints="B",
-        clearance=5e-4,
-        contact_law=LankaraniNikravesh(restitution=0.9),
-        friction_law=ModifiedCoulomb(0.01),
-        gravity=False,
-    )
+    mechanism = one_joint_b()
     clearance = 5e-4 * np.linspace(0.9, 1.1, 5)
     t1 = 6e-4
     config = jaxclear.recommended_solver(mechanism)
@@ -240,4 +393,36 @@ def test_clearance_members_equal_their_own_simulate_before_the_contacts_fork():
             float(got.extremes.normal_force_max["B"][i]),
             float(ref.extremes.normal_force_max["B"]),
             rtol=EXTREMES_RTOL,
+        )
+
+
+@pytest.mark.slow  # two compilations of the clearance-joint solve (~20 s)
+def test_saved_states_in_offset_form_equal_their_own_simulate():
+    """Lawson–Tsit5 integrates the impact memory in offset form (``_Program.offset``): the saved
+    states are converted back as ``simulate`` converts them. Case a of the benchmarks over 0.6 ms
+    (the first impact of each member); measured: at most 9e-25 of the largest entry."""
+    mechanism = one_joint_b()
+    config = SolverConfig(method="lawson-tsit5")
+    clearance, t1 = 5e-4 * np.array([0.9, 1.0, 1.1]), 6e-4
+    ts = np.linspace(0.0, t1, 25)
+    members = [jaxclear.with_parameters(mechanism, {"B.clearance": c}) for c in clearance]
+    y0 = np.stack([np.asarray(jaxclear.assemble(m)) for m in members])
+    got = solve_members(
+        mechanism,
+        {"B.clearance": clearance},
+        t1,
+        solver=config,
+        lanes=2,
+        contact_events=8,
+        y0=y0,
+        ts=ts,
+    )
+    assert np.all(np.asarray(got.extremes.event_count["B"]) >= 1)  # an impact in every member
+    for i, member in enumerate(members):
+        ref = jaxclear.simulate(member, t1, ts=ts, solver=config, contact_events=8)
+        assert int(got.num_steps[i]) == int(ref.num_steps)
+        y_ref = _states(ref)
+        assert np.max(np.abs(y_ref[:, -1])) > 1.0  # the memory row holds an impact velocity
+        np.testing.assert_allclose(
+            np.asarray(got.ys[i]), y_ref, rtol=0, atol=SAVED_RTOL * np.max(np.abs(y_ref))
         )

@@ -25,9 +25,17 @@ and observation of ``jaxclear.solve._simulate``, ``ExtremesTracking``), and each
 steps of diffrax's ``diffeqsolve`` loop (diffrax/_integrate.py ``loop``, ``body_fun_aux``), so a
 member's steps are the ones its own ``simulate`` takes (tests/test_lanes.py measures how equal).
 
-Not in this prototype: saved output points (``ts``; only y(t1) comes back, with the extremes of
-the solver's steps), differentiation, the split over several devices, the compilation store
-(``stored_jit``), solvers with a jump or step schedule (the PID controller here has none).
+Saved output points (``ts``): each accepted step fills the grid points in (t_prev, t_new] of
+its lane's member from the step's dense output (``solver.interpolation_cls`` built from the
+``dense_info`` that ``solver.step`` returns), as ``diffeqsolve`` with ``SaveAt(ts=...)`` does
+(diffrax/_integrate.py ``body_fun_aux``, ``save_ts_impl``): an inner loop that runs while some
+lane has a point left in its step, and writes the points straight into the (N, T, state) output
+at the member's row (no per-lane buffer to copy out at a refill). ``MemberSolutions.trajectories``
+then gives every member's ``Trajectory`` as ``simulate`` returns it.
+
+Not here: differentiation, the split over several devices (``run_ensemble`` splits its chunks),
+the compilation store (``stored_jit``), solvers with a jump or step schedule (the PID controller
+here has none).
 """
 
 import dataclasses
@@ -45,9 +53,11 @@ from ..dynamics._assembly import assemble_state
 from ..dynamics._equations import memory_offset_shift
 from ..model import Mechanism, parameter_info, with_parameters
 from ._extremes import Extremes, ExtremesTracking, Tracker
-from ._observables import ASSEMBLY_TOLERANCE, input_error
+from ._observables import ASSEMBLY_TOLERANCE, input_error, make_trajectory
 from ._simulate import _DECAY, _FIELD, _FULL, _OBSERVE, _STAGE, initial_state
 from ._solver import SolverConfig, solver_config
+from ._startup import ideal_mechanism
+from ._trajectory import Trajectory
 
 DEFAULT_LANES = 8
 """Lanes of the loop (members solved at once). On one CPU core a lane-step costs the same at 8
@@ -84,6 +94,7 @@ class _Lane(eqx.Module):
     num_steps: Array
     num_accepted_steps: Array
     num_rejected_steps: Array
+    save_index: Array  # int32, the member's next output point (ts)
 
 
 class MemberSolutions(eqx.Module):
@@ -100,6 +111,14 @@ class MemberSolutions(eqx.Module):
             ``Trajectory.extremes``; ``None`` without ``extremes``.
         iterations: loop iterations (steps taken by each lane, idle ones included): the lanes'
             use is ``num_steps.sum() / (iterations * lanes)``.
+        ts: (N, T) each member's output times, s (the grid given as ``ts``, clipped to the
+            member's t1); ``None`` without ``ts``.
+        ys: (N, T, state) the states at ``ts`` (the impact memory in its absolute form, as
+            ``Trajectory``'s); a point after a failed member's ``t_final`` is not finite, as in
+            ``simulate``. ``None`` without ``ts``.
+        program: how the members were solved (the base mechanism, parameter names and solver
+            settings; internal).
+        rows: (N, p) each member's parameter values, in the order of ``program.names``.
         lanes: lanes of the loop.
     """
 
@@ -112,6 +131,10 @@ class MemberSolutions(eqx.Module):
     num_rejected_steps: Array
     extremes: Extremes | None
     iterations: Array
+    ts: Array | None
+    ys: Array | None
+    program: "_Program"
+    rows: Array
     lanes: int = eqx.field(static=True)
 
     @property
@@ -123,6 +146,26 @@ class MemberSolutions(eqx.Module):
     def lane_use(self) -> Array:
         """Share of the lanes' steps that advanced a member (1: no lane ever idled)."""
         return jnp.sum(self.num_steps) / (self.iterations * self.lanes)
+
+    def trajectories(self) -> Trajectory:
+        """Every member's ``Trajectory`` on its ``ts``, as a batched ``Trajectory`` (leading axis
+        N; ``.member(i)`` is member i as ``simulate`` returns it): the per-instant outputs
+        (accelerations, multipliers, torque, clearance outputs, ...) evaluated at the saved
+        states, as ``simulate`` evaluates them (``make_trajectory``).
+
+        Raises:
+            ValueError: the members were solved without ``ts``.
+        """
+        if self.ys is None:
+            raise ValueError(
+                "these members were solved without output points: call solve_members with ts "
+                "(the output grid) to get their trajectories."
+            )
+        return _trajectories(self)
+
+    def trajectory(self, index: int) -> Trajectory:
+        """Member ``index``'s ``Trajectory`` (single, unbatched): ``trajectories().member(index)``."""
+        return self.trajectories().member(index)
 
 
 def _where(mask, a, b):
@@ -144,24 +187,38 @@ def _clip_floor(t1):
 
 
 class _Program(eqx.Module):
-    """The pieces of one solve, as ``simulate`` (``_simulate_core``) builds them."""
+    """The pieces of one solve, as ``simulate`` (``_simulate_core``) builds them. With ``ideal``,
+    each member's ``ideal_mechanism`` is solved (its clearance joints made ideal joints)."""
 
     mechanism: Mechanism
     names: tuple[str, ...] = eqx.field(static=True)
     config: SolverConfig = eqx.field(static=True)
     track: bool = eqx.field(static=True)
     max_events: int = eqx.field(static=True)
+    ideal: bool = eqx.field(static=True, default=False)
+
+    @property
+    def solved(self) -> Mechanism:
+        """The mechanism whose topology is solved (the base one, or its ideal mechanism)."""
+        return ideal_mechanism(self.mechanism) if self.ideal else self.mechanism
 
     @property
     def offset(self) -> bool:
-        return self.config.exponential and bool(np.any(self.mechanism.memory_rows))
+        return self.config.exponential and bool(np.any(self.solved.memory_rows))
 
     @property
     def terms(self):
         return diffrax.ODETerm(_FULL)
 
+    @property
+    def interpolation_cls(self):
+        """The dense output's class (``solver.interpolation_cls``, as ``diffeqsolve`` builds it
+        from a step's ``dense_info``)."""
+        return self.solver(self.solved, jnp.asarray(0.0)).interpolation_cls
+
     def member(self, row) -> Mechanism:
-        return with_parameters(self.mechanism, {n: row[k] for k, n in enumerate(self.names)})
+        m = with_parameters(self.mechanism, {n: row[k] for k, n in enumerate(self.names)})
+        return ideal_mechanism(m) if self.ideal else m
 
     def args(self, m: Mechanism) -> Mechanism:
         """The mechanism the vector field sees (the impact memory in offset form for exponential
@@ -218,6 +275,7 @@ class _Program(eqx.Module):
             num_steps=jnp.asarray(0, dtype=jnp.int32),
             num_accepted_steps=jnp.asarray(0, dtype=jnp.int32),
             num_rejected_steps=jnp.asarray(0, dtype=jnp.int32),
+            save_index=jnp.asarray(0, dtype=jnp.int32),
         )
         return lane, error
 
@@ -230,12 +288,17 @@ class _Program(eqx.Module):
             & (lane.num_steps < self.config.max_steps)
         )
 
-    def advance(self, lane: _Lane) -> _Lane:
-        """One step of one lane: diffrax's ``body_fun_aux`` without saving, events or progress."""
+    def advance(self, lane: _Lane):
+        """One step of one lane: diffrax's ``body_fun_aux`` without saving, events or progress.
+
+        Returns:
+            The lane after the step, and what saving needs: the step's start and end, its
+            ``dense_info`` and whether it was taken and accepted (``keep_step`` of a running
+            lane)."""
         m = self.member(lane.row)
         args, solver, controller = self.args(m), self.solver(m, lane.start), self.controller(m)
         terms = self.terms
-        y, y_error, _, solver_state, solver_result = solver.step(
+        y, y_error, dense_info, solver_state, solver_result = solver.step(
             terms, lane.tprev, lane.tnext, lane.y, args, lane.solver_state, False
         )
         y_error = jax.tree_util.tree_map(lambda x: jnp.where(jnp.isnan(x), jnp.inf, x), y_error)
@@ -275,7 +338,9 @@ class _Program(eqx.Module):
             num_accepted_steps=lane.num_accepted_steps + jnp.where(keep_step, 1, 0),
             num_rejected_steps=lane.num_rejected_steps + jnp.where(keep_step, 0, 1),
         )
-        return _where(self.running(lane), stepped, lane)
+        running = self.running(lane)
+        saving = (lane.tprev, lane.tnext, dense_info, running & keep_step)
+        return _where(running, stepped, lane), saving
 
     def final(self, lane: _Lane):
         """A finished lane's outputs (diffrax's final result code; y in absolute form)."""
@@ -297,63 +362,193 @@ class _Program(eqx.Module):
         return out
 
 
-@eqx.filter_jit
-def _solve_lanes(program: _Program, rows, t0, t1, start, y0, lanes: int):
-    """The loop: all members' initial lanes, then steps with refills until every member is done."""
+def _fill(program: _Program, ts, lane: _Lane, ys, saving):
+    """Save the output points each lane's step has passed: the points in (t_prev, t_new] of an
+    accepted step, from its dense output, as ``diffeqsolve``'s ``save_ts_impl`` does (the point
+    ``ts[i]``, clipped to the member's t1, is saved while it is at most the step's end), written
+    at the member's row of ``ys`` (N, T, state). A bounded loop: it runs while some lane has a
+    point left in its step (at most T times)."""
+    t_start, t_end, dense_info, keep = saving
+    # the dense output's static parts (LawsonInterpolation's decay rows) stay out of the vmap
+    dynamic, static = eqx.partition(dense_info, eqx.is_array)
+    size, n = ts.shape[0], ys.shape[0]
+    interpolation = program.interpolation_cls
+
+    def point(index):
+        return jnp.minimum(ts[jnp.minimum(index, size - 1)], lane.t1)
+
+    def pending(index):
+        return keep & (index < size) & (point(index) <= t_end)
+
+    def cond(carry):
+        return jnp.any(pending(carry[0]))
+
+    def body(carry):
+        index, ys = carry
+        due = pending(index)
+        y = jax.vmap(
+            lambda a, b, info, t: interpolation(t0=a, t1=b, **eqx.combine(info, static)).evaluate(t)
+        )(t_start, t_end, dynamic, point(index))
+        at = (jnp.where(due, lane.member, n), jnp.minimum(index, size - 1))  # n: dropped
+        return index + due.astype(index.dtype), ys.at[at].set(y, mode="drop")
+
+    index, ys = jax.lax.while_loop(cond, body, (lane.save_index, ys))
+    return dataclasses.replace(lane, save_index=index), ys
+
+
+def _solve_lanes(program: _Program, rows, t0, t1, start, y0, lanes: int, ts=None, active=None):
+    """The loop: all members' initial lanes, then steps with refills until every member is done.
+
+    With ``ts`` ((T,) output times), also the states there, (N, T, state). With ``active`` (a
+    traced count), only the first ``active`` members are solved; the others are left as zeros
+    (their rows pad a batch to a fixed shape, ``run_ensemble``'s refilled chunks)."""
     n = rows.shape[0]
+    active = jnp.asarray(n if active is None else active, dtype=jnp.int32)
     initial, errors = jax.vmap(program.initial, in_axes=(0, None, 0, 0, None if y0 is None else 0))(
         rows, t0, t1, start, y0
     )
     first = jnp.arange(lanes)
     lane = jax.tree_util.tree_map(lambda x: x[jnp.minimum(first, n - 1)], initial)
-    lane = dataclasses.replace(lane, member=jnp.where(first < n, first, _IDLE).astype(jnp.int32))
+    lane = dataclasses.replace(
+        lane, member=jnp.where(first < active, first, _IDLE).astype(jnp.int32)
+    )
     shapes = jax.eval_shape(jax.vmap(program.final), lane)
     out = jax.tree_util.tree_map(lambda s: jnp.zeros((n,) + s.shape[1:], s.dtype), shapes)
+    if ts is not None:
+        ys = jnp.full((n, ts.shape[0]) + initial.y.shape[1:], jnp.inf, dtype=initial.y.dtype)
+    else:
+        ys = None
 
     def refill(carry):
         """Write the finished lanes' members out; load the next members of the queue."""
-        lane, out, queue, count = carry
+        lane, out, ys, queue, count = carry
         done = finished(lane)
         at = jnp.where(done, lane.member, n)  # n: out of range, dropped
         out = jax.tree_util.tree_map(
             lambda o, v: o.at[at].set(v, mode="drop"), out, jax.vmap(program.final)(lane)
         )
         member = queue + jnp.cumsum(done) - 1
-        load = done & (member < n)
+        load = done & (member < active)
         fresh = jax.tree_util.tree_map(lambda x: x[jnp.clip(member, 0, n - 1)], initial)
         lane = _where(load, fresh, lane)
         member = jnp.where(load, member, jnp.where(done, _IDLE, lane.member))
         lane = dataclasses.replace(lane, member=member.astype(jnp.int32))
-        return lane, out, (queue + jnp.sum(done)).astype(jnp.int32), count
+        return lane, out, ys, (queue + jnp.sum(done)).astype(jnp.int32), count
 
     def finished(lane):
         """Lanes whose member is done (reached t1, failed or ran out of steps)."""
         return (lane.member != _IDLE) & ~jax.vmap(program.running)(lane)
 
     def stepping(inner):
-        lane, _ = inner
+        lane = inner[0]
         return jnp.any(jax.vmap(program.running)(lane)) & ~jnp.any(finished(lane))
 
     def step(inner):
-        lane, count = inner
-        return jax.vmap(program.advance)(lane), count + 1
+        lane, ys, count = inner
+        # filter_vmap: the dense output's static parts come back as they are, not as arrays
+        lane, saving = eqx.filter_vmap(program.advance)(lane)
+        if ys is not None:
+            lane, ys = _fill(program, ts, lane, ys, saving)
+        return lane, ys, count + 1
 
     def rounds(carry):
         """Step every lane until one member is done (an inner loop like the lockstep loop: no
         branch in its body), then write it out and refill its lane."""
-        lane, out, queue, count = carry
-        lane, count = jax.lax.while_loop(stepping, step, (lane, count))
-        return refill((lane, out, queue, count))
+        lane, out, ys, queue, count = carry
+        lane, ys, count = jax.lax.while_loop(stepping, step, (lane, ys, count))
+        return refill((lane, out, ys, queue, count))
 
     def busy(carry):
         return jnp.any(carry[0].member != _IDLE)
 
-    start_queue = jnp.asarray(min(lanes, n), dtype=jnp.int32)
-    carry = (lane, out, start_queue, jnp.asarray(0, dtype=jnp.int32))
-    _, out, _, count = jax.lax.while_loop(busy, rounds, carry)
+    start_queue = jnp.minimum(jnp.asarray(lanes, dtype=jnp.int32), active)
+    carry = (lane, out, ys, start_queue, jnp.asarray(0, dtype=jnp.int32))
+    _, out, ys, _, count = jax.lax.while_loop(busy, rounds, carry)
     if program.track:  # per member, as a vmapped simulate builds them
         out["extremes"] = jax.vmap(Tracker.extremes)(out.pop("tracker"))
+    if ts is not None and ys is not None:
+        ts_members = jnp.minimum(ts[None, :], t1[:, None])
+        if program.offset:  # back to the absolute impact memory, as _simulate_core converts
+            shift = jax.vmap(
+                lambda row, y: jax.vmap(lambda x: memory_offset_shift(program.member(row), x))(y)
+            )(rows, ys)
+            ys = ys + shift
+        out["ts"], out["ys"] = ts_members, ys
     return out, errors, count
+
+
+def members_solution(
+    program: _Program, rows, t0, t1, start, y0, lanes: int, ts=None, active=None
+) -> MemberSolutions:
+    """``_solve_lanes`` as a ``MemberSolutions`` (traceable: call it inside a jit)."""
+    out, errors, iterations = _solve_lanes(program, rows, t0, t1, start, y0, lanes, ts, active)
+    return MemberSolutions(
+        y_final=out["y_final"],
+        t_final=out["t_final"],
+        result=out["result"],
+        input_error=errors,
+        num_steps=out["num_steps"],
+        num_accepted_steps=out["num_accepted_steps"],
+        num_rejected_steps=out["num_rejected_steps"],
+        extremes=out.get("extremes"),
+        iterations=iterations,
+        ts=out.get("ts"),
+        ys=out.get("ys"),
+        program=program,
+        rows=rows,
+        lanes=int(lanes),
+    )
+
+
+_members_solution = eqx.filter_jit(members_solution)
+
+
+def _result_item(code) -> diffrax.RESULTS:
+    """A ``diffrax.RESULTS`` item holding the result code ``code`` (an int array)."""
+    success = diffrax.RESULTS.successful
+    value = jnp.asarray(code).astype(jnp.asarray(success._value).dtype)  # pyright: ignore[reportAttributeAccessIssue]
+    return eqx.tree_at(lambda r: r._value, success, value)
+
+
+def batched_trajectories(solution: MemberSolutions) -> Trajectory:
+    """Every member's ``Trajectory`` (leading axis N), traceable: ``make_trajectory`` of each
+    member, vmapped."""
+    program = solution.program
+
+    def one(row, ts, ys, y_final, extremes, steps, accepted, rejected, result, error, t_final):
+        stats = {
+            "num_steps": steps,
+            "num_accepted_steps": accepted,
+            "num_rejected_steps": rejected,
+        }
+        return make_trajectory(
+            program.member(row),
+            ts,
+            ys,
+            y_final,
+            extremes,
+            stats,
+            _result_item(result),
+            error,
+            t_final,
+        )
+
+    return jax.vmap(one)(
+        solution.rows,
+        solution.ts,
+        solution.ys,
+        solution.y_final,
+        solution.extremes,
+        solution.num_steps,
+        solution.num_accepted_steps,
+        solution.num_rejected_steps,
+        solution.result,
+        solution.input_error,
+        solution.t_final,
+    )
+
+
+_trajectories = eqx.filter_jit(batched_trajectories)
 
 
 def _per_member(x, n: int, what: str) -> np.ndarray:
@@ -380,14 +575,17 @@ def solve_members(
     y0: ArrayLike | None = None,
     extremes: bool = True,
     contact_events: int = 0,
+    ts: "ArrayLike | Sequence[float] | None" = None,
+    ideal: bool = False,
 ) -> MemberSolutions:
     """Solve N members of one mechanism on ``lanes`` refilled lanes (module doc).
 
     Member i is ``with_parameters(mechanism, {name: values[name][i]})``, as in
     ``jaxclear.studies.run_ensemble``; its solve is the one ``simulate(member_i, t1[i], t0=t0,
     solver=solver, statistics_start=statistics_start[i], extremes=extremes,
-    contact_events=contact_events)`` makes, without the saved output points. Compiled once per
-    mechanism topology, parameter names, N, lanes and solver settings: new values, end times and
+    contact_events=contact_events, ts=jnp.minimum(ts, t1[i]))`` makes (with ``ts``: its saved
+    states too; without: y(t1) only). Compiled once per mechanism topology, parameter names, N,
+    lanes, number of output points and solver settings: new values, end times, output times and
     statistics windows reuse the program. Failures are data (``result``, ``input_error``): nothing
     is raised on values.
 
@@ -408,9 +606,17 @@ def solve_members(
             the host, ``jaxclear.solve.assemble``: pass those states for the same start).
         extremes: track each member's ``Extremes`` (as ``simulate``'s ``extremes``).
         contact_events: room for contact events per clearance joint (as ``simulate``'s).
+        ts: (T,) output times shared by all members (increasing, from t0 on), s; a time after a
+            member's t1 is clipped to it. Each member's states there come from its solver's
+            dense output, as ``simulate``'s (``MemberSolutions.ys``, ``.trajectories()``).
+            ``None`` (default): no output points.
+        ideal: solve each member's ideal mechanism instead (``jaxclear.ideal_mechanism`` of
+            the member: its clearance joints made ideal joints), as ``run_ensemble`` does for
+            the deviations from the ideal mechanism.
 
     Returns:
-        ``MemberSolutions``: y(t_final), result codes, step counts and extremes per member.
+        ``MemberSolutions``: y(t_final), result codes, step counts and extremes per member, and
+        with ``ts`` the states there and the members' trajectories.
 
     Raises:
         ValueError: bad arguments (naming the argument and what is allowed).
@@ -437,23 +643,39 @@ def solve_members(
     if np.any(ends <= t0):
         raise ValueError(f"t1 must be greater than t0 = {t0} for every member.")
     start = _per_member(t0 if statistics_start is None else statistics_start, n, "statistics_start")
+    solved = ideal_mechanism(mechanism) if ideal else mechanism
     if y0 is not None:
         y0 = jnp.asarray(y0, dtype=float)
-        if y0.shape != (n, mechanism.state_size):
+        if y0.shape != (n, solved.state_size):
             raise ValueError(
-                f"y0 must have shape (N, state) = ({n}, {mechanism.state_size}), got {y0.shape}."
+                f"y0 must have shape (N, state) = ({n}, {solved.state_size}), got {y0.shape}."
             )
     events = int(contact_events) if extremes else 0
     if events < 0:
         raise ValueError(f"contact_events must be 0 or more, got {contact_events!r}.")
+    if ts is not None:
+        ts = np.asarray(ts, dtype=float)
+        if (
+            ts.ndim != 1
+            or ts.size < 1
+            or not np.all(np.isfinite(ts))
+            or np.any(np.diff(ts) < 0)
+            or ts[0] < t0
+        ):
+            raise ValueError(
+                f"ts must be a non-empty 1-D array of finite, increasing output times from "
+                f"t0 = {t0} on (a time after a member's t1 is clipped to it); got shape {ts.shape}."
+            )
+        ts = jnp.asarray(ts)
     program = _Program(
         mechanism=mechanism,
         names=names,
-        config=solver_config(solver, mechanism),
+        config=solver_config(solver, solved),
         track=bool(extremes),
         max_events=events,
+        ideal=bool(ideal),
     )
-    out, errors, iterations = _solve_lanes(
+    return _members_solution(
         program,
         jnp.asarray(rows),
         jnp.asarray(t0),
@@ -461,16 +683,5 @@ def solve_members(
         jnp.asarray(start),
         y0,
         int(lanes),
-    )
-    return MemberSolutions(
-        y_final=out["y_final"],
-        t_final=out["t_final"],
-        result=out["result"],
-        input_error=errors,
-        num_steps=out["num_steps"],
-        num_accepted_steps=out["num_accepted_steps"],
-        num_rejected_steps=out["num_rejected_steps"],
-        extremes=out.get("extremes"),
-        iterations=iterations,
-        lanes=int(lanes),
+        ts,
     )

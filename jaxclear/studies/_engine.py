@@ -13,7 +13,11 @@ it runs is set by one ``EnsembleSettings``:
   every device solves its own share as its own computation, launched from its own thread;
 - a vmapped adaptive solve steps all its members until the slowest finishes (lockstep), so a run
   that learns its members' costs as it goes may order the rest by expected cost before it cuts
-  the next chunk (``cost_order``, ``EnsembleSettings.order``).
+  the next chunk (``cost_order``, ``EnsembleSettings.order``);
+- ``run_ensemble`` may instead solve each chunk on refilled lanes (``EnsembleSettings.engine =
+  "refill"``: ``jaxclear.solve.solve_members``, where a lane whose member is done takes the next
+  one of the chunk at once); ``map_members(..., batched=True)`` then hands each chunk (or each
+  device's share of it) to a function of all its rows.
 
 Nothing here reads or writes files.
 """
@@ -32,11 +36,17 @@ import numpy as np
 
 from .._core._errors import EnsembleError
 from ..model import Mechanism, parameter_names
+from ..solve._lanes import DEFAULT_LANES
 
 DEFAULT_CHUNK = 64
 """Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
 ORDERS = ("cost", "index")
 """Member orders of ``EnsembleSettings.order``."""
+ENGINES = ("lockstep", "refill")
+"""How ``run_ensemble`` solves a chunk (``EnsembleSettings.engine``): ``"lockstep"``, one vmapped
+``simulate`` over the chunk's members (each waits for the slowest); ``"refill"``, the chunk's
+members on ``EnsembleSettings.lanes`` lanes refilled as members finish
+(``jaxclear.solve.solve_members``)."""
 
 
 def _device_tuple(devices: Any) -> tuple | None:
@@ -57,11 +67,11 @@ def _is_whole(size: Any) -> bool:
         isinstance(size, int | float | np.integer | np.floating)
         and not isinstance(size, bool | np.bool_)
         and bool(np.isfinite(size))
-        and int(size) == size
+        and bool(int(size) == size)
     )
 
 
-def _whole(size: Any) -> int:
+def _whole(size: Any) -> Any:
     """A whole number (``4``, ``4.0``, ``np.int64(4)``) as an ``int``; anything else unchanged, for
     ``__check_init__`` to refuse."""
     return int(size) if _is_whole(size) else size
@@ -106,6 +116,15 @@ class EnsembleSettings(eqx.Module):
             resumes from them); ``None`` keeps nothing on disk.
         table_name: file name of the member table in ``out``.
         progress: show a progress bar over members.
+        engine: how ``run_ensemble`` (``montecarlo``, ``sweep``) solves a chunk (``ENGINES``):
+            ``"lockstep"`` (default), one vmapped ``simulate`` of its members, which steps them
+            all until the slowest one ends; ``"refill"``, ``jaxclear.solve.solve_members`` on
+            ``lanes`` lanes, where a lane whose member has finished takes the next one of the
+            chunk at once (the same per-member results to rounding: docs/ensembles.md, "The
+            engine"). ``map_members`` and the sweeps built on it always run lockstep.
+        lanes: members integrated at once by the ``"refill"`` engine (default
+            ``jaxclear.solve._lanes.DEFAULT_LANES``, the faster of 8 and 32 on one CPU core,
+            benchmarks/lane_refill.py); ignored by ``"lockstep"``.
 
     Raises:
         EnsembleError: a field out of its range, naming the field and what is allowed.
@@ -117,6 +136,8 @@ class EnsembleSettings(eqx.Module):
     out: Path | None = eqx.field(static=True, default=None, converter=_folder)
     table_name: str = eqx.field(static=True, default="members.csv")
     progress: bool = eqx.field(static=True, default=True, converter=_flag)
+    engine: str = eqx.field(static=True, default="lockstep")
+    lanes: int = eqx.field(static=True, default=DEFAULT_LANES, converter=_whole)
 
     def __check_init__(self):
         size = self.chunk_size
@@ -145,6 +166,17 @@ class EnsembleSettings(eqx.Module):
             )
         if not isinstance(self.progress, bool):
             raise EnsembleError(f"progress must be True or False, got {self.progress!r}.")
+        if not isinstance(self.engine, str) or self.engine not in ENGINES:
+            raise EnsembleError(
+                f"engine must be 'lockstep' or 'refill' (how run_ensemble solves a chunk), got "
+                f"{self.engine!r}."
+            )
+        lanes = self.lanes
+        if not isinstance(lanes, int) or isinstance(lanes, bool) or lanes < 1:
+            raise EnsembleError(
+                f"lanes must be a positive integer (members integrated at once by the 'refill' "
+                f"engine), got {lanes!r}."
+            )
 
 
 def _split_devices(devices: Sequence[Any] | None) -> list | None:
@@ -199,6 +231,7 @@ def map_members(
     *,
     settings: EnsembleSettings = EnsembleSettings(),
     on_chunk: Callable[[int, int], Any] | None = None,
+    batched: bool = False,
 ):
     """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
 
@@ -215,6 +248,11 @@ def map_members(
             devices) and ``devices`` (to split each chunk over); its other fields are not used
             here.
         on_chunk: ``on_chunk(start, stop)`` after rows ``start:stop`` are done.
+        batched: ``fn`` takes a whole chunk (or a device's share of it) instead of one row:
+            ``fn(rows, count, *args)`` with ``rows`` (C, p) and ``count`` (a traced int32
+            scalar) the number of rows that are members (the rest pad the last chunk, and
+            ``fn`` need not solve them); it returns outputs with a leading axis of C. For a
+            function that vectorises itself (``run_ensemble``'s refilled chunks).
 
     Returns:
         ``fn``'s outputs as NumPy arrays with a leading axis of N.
@@ -237,8 +275,15 @@ def map_members(
     for start in range(0, len(values), chunk):
         part = values[start : start + chunk]
         padded = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
+
+        def count(k, part=part):  # members in share k (rows past them pad the chunk)
+            return jnp.asarray(min(max(len(part) - k * per, 0), per), dtype=jnp.int32)
+
         if devs is None:
-            parts = [_vmap_chunk(fn, args, jnp.asarray(padded))]
+            if batched:
+                parts = [fn(jnp.asarray(padded), count(0), *args)]
+            else:
+                parts = [_vmap_chunk(fn, args, jnp.asarray(padded))]
         else:
             # each device solves its own share as an independent computation, launched from its
             # own thread (JAX releases the GIL while XLA runs): the devices run at once. (A
@@ -247,7 +292,11 @@ def map_members(
             shares = [padded[k * per : (k + 1) * per] for k in range(len(devs))]
 
             def run(k, shares=shares):
-                out = _vmap_chunk(fn, args, jax.device_put(shares[k], devs[k]))
+                rows = jax.device_put(shares[k], devs[k])
+                if batched:
+                    out = fn(rows, jax.device_put(count(k), devs[k]), *args)
+                else:
+                    out = _vmap_chunk(fn, args, rows)
                 return jax.block_until_ready(out)
 
             with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:

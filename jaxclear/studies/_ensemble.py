@@ -10,7 +10,9 @@ wall time.
 
 How it runs (``EnsembleSettings``):
 - members are solved in vectorised chunks, split over the local devices, by the engine
-  (``map_members``, ``jaxclear.studies._engine``);
+  (``map_members``, ``jaxclear.studies._engine``): in lockstep (``engine="lockstep"``, a vmapped
+  ``simulate`` per chunk) or on refilled lanes (``engine="refill"``, ``solve_members`` with the
+  output grid, then the same statistics code, ``_summary``);
 - members are ordered by expected cost before they are chunked (``order="cost"``: the step counts
   of the members solved so far, regressed on the drawn values; see ``cost_order``);
 - with ``out`` given, finished members are written after every chunk (atomic replace of the CSV
@@ -50,6 +52,7 @@ from ..analysis._modes import (
 from ..analysis._signals import signal_names, signals
 from ..analysis._statistics import statistics
 from ..model import Mechanism, get_parameter, parameter_info, with_parameters
+from ..solve._lanes import _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
 from ..solve._startup import ideal_mechanism
@@ -108,12 +111,9 @@ def _member(
         solver=config,
         statistics_start=start,
         throw=False,
-        contact_events=events if contact_joints(mechanism) else 0,
+        contact_events=_events(mechanism, events),
     )
-    stats = dict(statistics(traj))
-    if mechanism.driver is not None:
-        tau = traj.input_torque
-        stats["torque_fluctuation"] = _window_rms(ts, tau - _window_mean(ts, tau, start), start)
+    ideal = None
     if deviation:
         ideal = simulate(
             ideal_mechanism(m),
@@ -124,6 +124,24 @@ def _member(
             extremes=False,
             throw=False,
         )
+    return _summary(mechanism, deviation, traj, ideal, ts, start, keep)
+
+
+def _events(mechanism, events):
+    """Room for contact events per joint: ``events`` where the mechanism has contact joints."""
+    return events if contact_joints(mechanism) else 0
+
+
+def _summary(mechanism, deviation, traj, ideal, ts, start, keep=False):
+    """A member's statistics, contacts and outcome from its trajectory ``traj`` on ``ts`` (and
+    its ideal mechanism's, ``ideal``, for the ``deviation`` signals), whichever engine solved
+    it (``_member``: lockstep; ``_refilled_chunk``: refilled lanes)."""
+    m = traj.mechanism
+    stats = dict(statistics(traj))
+    if mechanism.driver is not None:
+        tau = traj.input_torque
+        stats["torque_fluctuation"] = _window_rms(ts, tau - _window_mean(ts, tau, start), start)
+    if deviation:
         mine, theirs = signals(traj, deviation), signals(ideal, deviation)
         for name in deviation:
             stats[f"{name}_deviation"] = _window_rms(ts, mine[name] - theirs[name], start)
@@ -147,6 +165,60 @@ def _member(
     if keep:
         return stats, contacts, outcome, traj
     return stats, contacts, outcome
+
+
+# --- a chunk on refilled lanes ----------------------------------------------------------------------
+
+
+@eqx.filter_jit
+def _refill_solve(values, count, arguments, ends, starts, lanes, ideal=False):
+    """The first ``count`` rows of ``values`` solved on ``lanes`` refilled lanes as ``_member``
+    solves one (``solve_members`` with the output grid ``ts``), or with ``ideal`` their ideal
+    mechanisms as ``_member`` solves them for the deviations: a ``MemberSolutions``.
+    ``arguments``: ``_member``'s after its row (``_Plan.arguments``); ``ends``, ``starts``: (N,)
+    each member's t1 and statistics start, s."""
+    mechanism, names, config, ideal_config, deviation, events, ts, t0, t1, start = arguments
+    program = _Program(
+        mechanism=mechanism,
+        names=names,
+        config=ideal_config if ideal else config,
+        track=not ideal,
+        max_events=0 if ideal else _events(mechanism, events),
+        ideal=ideal,
+    )
+    return members_solution(program, values, t0, ends, starts, None, lanes, ts, count)
+
+
+@eqx.filter_jit
+def _refill_summaries(members, ideal, mechanism, deviation, ts, start):
+    """``_summary`` of every member of ``_refill_solve``'s solutions (vmapped)."""
+    trajectories = batched_trajectories(members)
+    ideals = None if ideal is None else batched_trajectories(ideal)
+    return jax.vmap(lambda tr, idl: _summary(mechanism, deviation, tr, idl, ts, start))(
+        trajectories, ideals
+    )
+
+
+def _refilled_chunk(values, count, arguments, lanes, keep=False):
+    """A chunk's members on refilled lanes (``map_members(..., batched=True)``): their
+    statistics, contacts and outcomes as ``_member`` gives them; with ``keep``, their batched
+    ``Trajectory`` as well (built by its own program from the same solutions, so the statistics
+    come from the very program of the run)."""
+    mechanism, deviation, ts, t0, t1, start = (arguments[i] for i in (0, 4, 6, 7, 8, 9))
+    # per-member end and start times made here, not broadcast inside the program: with t1
+    # broadcast inside it, XLA's algebraic simplifier logged that it was stuck in a loop
+    # (clearance-joint slider–crank; compilation 22 s against 19 s)
+    n = values.shape[0]
+    ends, starts = (np.full(n, float(x)) for x in (t1, start))
+    members = _refill_solve(values, count, arguments, ends, starts, lanes)
+    ideal = None
+    if deviation:
+        starts = np.full(n, float(t0))
+        ideal = _refill_solve(values, count, arguments, ends, starts, lanes, ideal=True)
+    out = _refill_summaries(members, ideal, mechanism, deviation, ts, start)
+    if keep:
+        return (*out, members.trajectories())
+    return out
 
 
 # --- the run --------------------------------------------------------------------------------------
@@ -231,6 +303,22 @@ class _Plan:
             jnp.asarray(self.t1, dtype=float),
             jnp.asarray(self.start, dtype=float),
         )
+
+    def solve(
+        self, members: np.ndarray, chunk: int, settings: EnsembleSettings, keep: bool = False
+    ):
+        """One chunk's outputs, one row per member of ``members`` (then padding rows):
+        (statistics, contacts, outcome), and with ``keep`` the batched ``Trajectory``; solved
+        by ``settings.engine``. Lockstep: ``_member`` vmapped over the chunk, filled up with
+        nominal rows (``batch``). Refill: ``_refilled_chunk`` on ``settings.lanes`` lanes; the
+        engine pads the chunk to its shape, and the padding rows are not solved."""
+        args = self.arguments(self.mechanism)
+        if settings.engine == "refill":
+            args = (args, settings.lanes, keep)
+            rows = self.values[members]
+            return map_members(_refilled_chunk, args, rows, settings=settings, batched=True)
+        fn = _member_replay_of_row if keep else _member_of_row
+        return map_members(fn, args, self.batch(members, chunk), settings=settings)
 
     def batch(self, members: np.ndarray, chunk: int) -> np.ndarray:
         """The rows of one chunk: these members' values, then nominal rows up to ``chunk``."""
@@ -451,11 +539,8 @@ def run_ensemble(
     try:
         while len(todo):
             members, todo = _next_chunk(settings, vals, todo, finished, result.num_steps, chunk)
-            batch = plan.batch(members, chunk)
             started = time.perf_counter()
-            stats, pen, outcome = map_members(
-                _member_of_row, plan.arguments(mechanism), batch, settings=settings
-            )
+            stats, pen, outcome = plan.solve(members, chunk, settings)
             wall = (time.perf_counter() - started) / len(members)
             for row, i in enumerate(members):
                 plan.record(result, i, row, stats, pen, outcome)
@@ -496,6 +581,11 @@ class MemberReplay:
             and step counts), or the member alone with nominal rows (``order="cost"`` without
             ``num_steps``; a member's result does not depend on its chunk mates: see
             docs/ensembles.md, "Replaying a member").
+        engine: how the chunk was solved again: the ensemble's ``EnsembleSettings.engine``.
+            ``"lockstep"``: the vmapped ``simulate`` of the chunk; ``"refill"``: the same
+            refill program as the run (``solve_members`` on ``settings.lanes`` lanes, the
+            chunk's members in the same order, then the same statistics program), with the
+            trajectory built from those solutions by a program of its own.
     """
 
     index: int
@@ -506,6 +596,7 @@ class MemberReplay:
     chunk_size: int
     names: tuple[str, ...]
     exact_chunk: bool
+    engine: str = "lockstep"
 
     @property
     def statistics(self) -> dict[str, float]:
@@ -556,9 +647,10 @@ def replay_member(
             program; its result does not depend on its mates, measured: docs/ensembles.md).
         t0, statistics_start, num_points, solver, deviation, continuous_fraction,
         contact_events: as given to ``run_ensemble``; they must be the same.
-        settings: as given to ``run_ensemble`` (``chunk_size``, ``devices``, ``order``; ``out``
-            and ``progress`` are not used): the chunk size and the devices decide the compiled
-            program.
+        settings: as given to ``run_ensemble`` (``chunk_size``, ``devices``, ``order``,
+            ``engine``, ``lanes``; ``out`` and ``progress`` are not used): the chunk size, the
+            devices, the engine and its lanes decide the compiled program. A member of a
+            ``"refill"`` run is replayed by the refill program with the run's lanes.
 
     Returns:
         A ``MemberReplay``: the row, the trajectory, the chunk.
@@ -605,12 +697,7 @@ def replay_member(
         members = np.asarray([member])
     lane = int(np.flatnonzero(members == member)[0])
     started = time.perf_counter()
-    stats, contacts, outcome, trajectories = map_members(
-        _member_replay_of_row,
-        plan.arguments(mechanism),
-        plan.batch(members, chunk),
-        settings=settings,
-    )
+    stats, contacts, outcome, trajectories = plan.solve(members, chunk, settings, keep=True)
     result = plan.empty_result()
     plan.record(result, member, lane, stats, contacts, outcome)
     result.wall_time_s[member] = (time.perf_counter() - started) / len(members)
@@ -623,6 +710,7 @@ def replay_member(
         chunk_size=chunk,
         names=plan.names,
         exact_chunk=exact,
+        engine=settings.engine,
     )
 
 
