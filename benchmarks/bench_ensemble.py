@@ -73,7 +73,7 @@ def worker(a):
     options = dict(statistics_start=start, num_points=points, solver=a.solver)
     out = {"devices": len(jax.local_devices()), "chunks": []}
     if a.montecarlo:
-        quiet = jaxclear.EnsembleSettings(progress=False)
+        quiet = jaxclear.EnsembleSettings(progress=False, engine=a.engine)
         t = time.perf_counter()
         r = jaxclear.run_ensemble(mech, _values(mech, a.montecarlo), t1, settings=quiet, **options)
         out["montecarlo"] = {
@@ -101,11 +101,13 @@ def worker(a):
     out["serial_s_per_member"] = (time.perf_counter() - t) / a.serial
     for chunk in a.chunks:
         n = max(chunk, -(-a.members // chunk) * chunk)
-        warm = jaxclear.EnsembleSettings(chunk_size=chunk, progress=False)
+        warm = jaxclear.EnsembleSettings(chunk_size=chunk, progress=False, engine=a.engine)
         t = time.perf_counter()
         jaxclear.run_ensemble(mech, _values(mech, chunk), t1, settings=warm, **options)
         first = time.perf_counter() - t
-        settings = jaxclear.EnsembleSettings(chunk_size=chunk, order=a.order, progress=False)
+        settings = jaxclear.EnsembleSettings(
+            chunk_size=chunk, order=a.order, progress=False, engine=a.engine
+        )
         t = time.perf_counter()
         r = jaxclear.run_ensemble(mech, _values(mech, n), t1, settings=settings, **options)
         run = time.perf_counter() - t
@@ -133,6 +135,12 @@ def main():
     p.add_argument("--revolutions", type=float, default=2.0)
     p.add_argument("--order", default="cost", choices=("cost", "index"))
     p.add_argument("--solver", default="auto")
+    p.add_argument(
+        "--engine",
+        default="lockstep",
+        choices=("lockstep", "refill"),
+        help="run_ensemble's engine (EnsembleSettings.engine; refill: 8 lanes per device share)",
+    )
     p.add_argument("--montecarlo", type=int, default=0)
     p.add_argument("--json", default=None, help="also write each device count's figures here")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)

@@ -248,7 +248,8 @@ def map_members(
             devices) and ``devices`` (to split each chunk over); its other fields are not used
             here.
         on_chunk: ``on_chunk(start, stop)`` after rows ``start:stop`` are done.
-        batched: ``fn`` takes a whole chunk (or a device's share of it) instead of one row:
+        batched: ``fn`` takes a whole chunk (or a device's share of it, the shares run one
+            after another: at once they deadlocked in LAPACK's batched Cholesky) instead of one row:
             ``fn(rows, count, *args)`` with ``rows`` (C, p) and ``count`` (a traced int32
             scalar) the number of rows that are members (the rest pad the last chunk, and
             ``fn`` need not solve them); it returns outputs with a leading axis of C. For a
@@ -299,8 +300,15 @@ def map_members(
                     out = _vmap_chunk(fn, args, rows)
                 return jax.block_until_ready(out)
 
-            with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:
-                parts = list(pool.map(run, range(len(devs))))
+            if batched:
+                # one share after another: two refilled programs run at once on two CPU devices
+                # deadlocked (both in LAPACK's batched Cholesky, each waiting on the shared
+                # thread pool for work the other one's wait blocked; a Monte Carlo of 1000
+                # case-a members hung with 0 % CPU)
+                parts = [run(k) for k in range(len(devs))]
+            else:
+                with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:
+                    parts = list(pool.map(run, range(len(devs))))
         pending.append((start, len(part), parts))
         if len(pending) > 1:
             collect()
