@@ -506,7 +506,7 @@ still above ``LOSS_GROWTH`` times the best of the shorter windows (it would be d
 from the shorter windows' estimate, every window kept in the fits of docs/identification.md was
 below that bound after 1 iteration (2 in an earlier version of the fit); a window where the model
 parts from the data costs the most Jacobians of a fit (the longest solves): the three-unknown
-record's 30 ms window took 12 of that fit's 53 evaluations, 33 of its 56 s, with patience 5."""
+record's 30 ms window took 12 of that fit's 53 evaluations, 33 s of 55 s, with patience 5."""
 
 
 STALL_SHARE = 0.5
