@@ -204,3 +204,35 @@ def test_standard_plots_follow_the_mechanism(four_bar_traj, tmp_path):
     np.testing.assert_allclose(
         lines[3].get_ydata(), np.linalg.norm(np.asarray(four_bar_traj.joint_force("O4")), axis=1)
     )
+
+
+def test_fit_title_stays_inside_the_figure():
+    """Three estimates in fit.png's title: on one line they ran past both edges of the figure
+    (a result of the 1000 rpm three-unknown fit); they now break onto lines that fit."""
+    from types import SimpleNamespace
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from jaxclear.plot import plot_fit
+
+    def estimate(value, std, unit):
+        return SimpleNamespace(value=value, std=std, unit=unit)
+
+    t = np.linspace(0.0, 0.03, 20)
+    result = SimpleNamespace(
+        measured={"slider_x": t},
+        fitted={"slider_x": t},
+        t=t,
+        window_end=0.015,
+        parameters={
+            "A.clearance": estimate(0.0002997035582871541, 2.0971666736501104e-07, "m"),
+            "A.restitution": estimate(0.7513800684520329, 0.0009018169836597218, ""),
+            "A.friction_coefficient": estimate(0.050022060596130395, 2.5709366782594948e-05, ""),
+        },
+        success=True,
+    )
+    fig = plot_fit(result)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    box = fig._suptitle.get_window_extent(canvas.get_renderer())
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.width

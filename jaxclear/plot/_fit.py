@@ -29,8 +29,8 @@ def plot_fit(result) -> Figure:
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("time [ms] (shaded: fitted span)")
-    estimates = ", ".join(
-        f"{n} = {e.value:.6g} ± {e.std:.2g} {e.unit} (1σ)" for n, e in result.parameters.items()
+    estimates = _lines(
+        [f"{n} = {e.value:.6g} ± {e.std:.2g} {e.unit} (1σ)" for n, e in result.parameters.items()]
     )
     if result.success:
         fig.suptitle(estimates, fontsize=9)
@@ -38,6 +38,22 @@ def plot_fit(result) -> Figure:
         note = "not a fit (see its reason): the estimates and their ± are unreliable"
         fig.suptitle(f"{estimates}\n{note}", fontsize=9, color="C3")
     return fig
+
+
+TITLE_WIDTH = 90
+"""Characters per title line at the title's font size: the width of the 7-inch figure (three
+estimates on one line ran past both edges of fit.png)."""
+
+
+def _lines(items: list[str]) -> str:
+    """``items`` joined by ", ", starting a new line where one would pass ``TITLE_WIDTH``."""
+    lines: list[str] = []
+    for item in items:
+        if lines and len(lines[-1]) + 2 + len(item) <= TITLE_WIDTH:
+            lines[-1] += ", " + item
+        else:
+            lines.append(item)
+    return "\n".join(lines)
 
 
 def plot_loss(result) -> Figure:
