@@ -57,8 +57,9 @@ def _lines(items: list[str]) -> str:
 
 
 def plot_loss(result) -> Figure:
-    """Loss history of an identification: the scan's best point and each Levenberg–Marquardt
-    iteration per window (log scale; ≈ 1 is a fit to the noise level)."""
+    """Loss history of an identification: the scan's best point, then per window (and start) the
+    starting point and each accepted Levenberg–Marquardt iteration (log scale; ≈ 1 is a fit to the
+    noise level). Rejected trial steps are not entries of the history."""
     fig = Figure(figsize=(6.4, 3.6), layout="constrained")
     ax = fig.subplots()
     stages = list(dict.fromkeys(h["stage"] for h in result.history))
@@ -69,7 +70,7 @@ def plot_loss(result) -> Figure:
         ax.semilogy(xs, losses, "o-", ms=3, color=f"C{k % 10}", label=stage)
         x += len(losses)
     ax.axhline(1.0, color="0.5", lw=0.8, ls=":")
-    ax.set_xlabel("evaluation")
+    ax.set_xlabel("step of the fit (scan's best point; each start and accepted iteration)")
     ax.set_ylabel("loss (mean squared residual / noise²)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
