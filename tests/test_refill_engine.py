@@ -6,6 +6,13 @@ The refilled engine's fast tests share the compiled solves of tests/test_lanes.p
 ensemble's members against their own ``simulate``, resuming across engines, replaying a member).
 """
 
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
 import jax
 import numpy as np
 import pytest
@@ -40,30 +47,34 @@ def test_whole_lanes_are_accepted():
     assert EnsembleSettings(lanes=32.0).lanes == 32
 
 
+VALUES = {
+    "B.clearance": [4e-4, 5e-4, 6e-4, -1e-4, 5e-4],
+    "rpm": [5000.0, 4000.0, 6000.0, 5000.0, 5e5],
+}
+"""Five members: one clearance joint (B) over 2 ms (free flight and the first impacts); the fourth
+is not admissible, the fifth runs out of steps."""
+RUN = dict(statistics_start=5e-4, num_points=41, solver={"method": "tsit5", "max_steps": 2000})
+
+
+def _run(engine, devices, chunk=4):
+    settings = EnsembleSettings(
+        chunk_size=chunk, devices=devices, progress=False, engine=engine, lanes=2
+    )
+    options = dict(RUN, solver=jaxclear.SolverConfig(**RUN["solver"]))
+    values = {k: np.asarray(v) for k, v in VALUES.items()}
+    return jaxclear.run_ensemble(one_joint_b(), values, 2e-3, settings=settings, **options)
+
+
+@pytest.fixture(scope="module")
+def runs():
+    """The five members on one device in chunks of four, by each engine (slow: ~35 s)."""
+    return {e: _run(e, jax.local_devices()[:1]) for e in ("lockstep", "refill")}
+
+
 @pytest.mark.slow  # two compilations of the clearance-joint ensemble (~35 s)
-def test_clearance_members_refilled_equal_lockstep():
-    """One clearance joint (B) over 2 ms (free flight and the first impacts), five members in
-    chunks of four on two lanes: contact modes from the located contacts and the deviations from
-    the ideal mechanism (a second refilled solve); one member not admissible, one out of steps."""
-    mechanism = one_joint_b()
-    values = {
-        "B.clearance": np.array([4e-4, 5e-4, 6e-4, -1e-4, 5e-4]),
-        "rpm": np.array([5000.0, 4000.0, 6000.0, 5000.0, 5e5]),
-    }
-    runs = {}
-    for engine in ("lockstep", "refill"):
-        settings = EnsembleSettings(
-            chunk_size=4, devices=jax.local_devices()[:1], progress=False, engine=engine, lanes=2
-        )
-        runs[engine] = jaxclear.run_ensemble(
-            mechanism,
-            values,
-            2e-3,
-            statistics_start=5e-4,
-            num_points=41,
-            solver=jaxclear.SolverConfig(method="tsit5", max_steps=2000),
-            settings=settings,
-        )
+def test_clearance_members_refilled_equal_lockstep(runs):
+    """Five members in chunks of four on two lanes: contact modes from the located contacts and
+    the deviations from the ideal mechanism (a second refilled solve)."""
     got, lockstep = runs["refill"], runs["lockstep"]
     assert got.messages == lockstep.messages
     assert [s == "ok" for s in got.status] == [True, True, True, False, False]
@@ -76,3 +87,47 @@ def test_clearance_members_refilled_equal_lockstep():
         np.testing.assert_allclose(mine[ok], theirs[ok], rtol=STATISTICS_RTOL, err_msg=name)
     assert np.all(got.statistics["B_impacts"][:3] >= 1)
     assert np.all(got.statistics["slider_a_deviation"][:3] > 0)
+
+
+TWO_DEVICES = textwrap.dedent(
+    """
+    import json, sys
+    sys.path.insert(0, sys.argv[1])
+    import jax
+    import test_refill_engine as t
+    r = t._run("refill", None)
+    print(json.dumps({"devices": len(jax.devices()), "status": list(r.status),
+                      "statistics": {k: v.tolist() for k, v in r.statistics.items()}}))
+    """
+)
+
+
+@pytest.mark.slow  # a subprocess compiling both refilled programs (~40 s)
+def test_refilled_shares_run_at_once_on_two_devices(runs):
+    """Two CPU devices (``XLA_FLAGS``): each chunk's two shares are refilled programs that run at
+    once, one from each thread (the clearance mechanism's 7-row and the ideal one's 9-row
+    constraint solves are unrolled, so no LAPACK call sits in their loops; with the 9-row solve
+    on LAPACK, such programs deadlocked in a Monte Carlo of 256 members). Each member equals its
+    solve on one device. The subprocess's timeout ends a hang."""
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    tests = str(Path(__file__).parent)
+    done = subprocess.run(
+        [sys.executable, "-c", TWO_DEVICES, tests],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out["devices"] == 2
+    one = runs["refill"]
+    assert out["status"] == list(one.status)
+    for name, theirs in one.statistics.items():
+        np.testing.assert_allclose(
+            np.asarray(out["statistics"][name], dtype=float),
+            theirs,
+            rtol=STATISTICS_RTOL,
+            equal_nan=True,
+            err_msg=name,
+        )

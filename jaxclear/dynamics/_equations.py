@@ -94,23 +94,30 @@ def solve_accelerations(mechanism, t, q, qd, forces):
     return qdd, lam, phi, phi_dot
 
 
-UNROLLED_SOLVE_MAX = 8
-"""Constraint count up to which the solve is unrolled at trace time. Measured per solve inside a
-compiled loop (one core): 3 rows 0.10 µs unrolled vs 0.71 µs LAPACK Cholesky, 7 rows 0.57 vs 0.93 µs,
-9 rows 1.76 vs 1.02 µs."""
+UNROLLED_SOLVE_MAX = 9
+"""Constraint count up to which the solve is unrolled at trace time. Per solve inside a compiled
+loop, one core (``taskset -c 1 python benchmarks/spd_solve.py``), unrolled vs LAPACK Cholesky:
+3 rows 0.10 vs 0.73 µs, 7 rows 0.58 vs 0.96 µs, 9 rows 1.81 vs 1.47 µs; vmapped over 8 lanes,
+9 rows 0.74 vs 0.65 µs and 12 rows 2.45 vs 0.85 µs. 9 rows are unrolled although they cost
+14–23 % more: that covers the ideal slider–crank and four-bar, so that their refilled ensemble
+programs call no LAPACK routine in the step loop and may run on several CPU devices at once
+(``jaxclear.studies._ensemble.concurrent_refill``)."""
 
 
-def spd_solve(matrix, rhs):
+def spd_solve(matrix, rhs, unrolled: bool | None = None):
     """Solve S x = b for a small symmetric positive definite S.
 
-    Up to ``UNROLLED_SOLVE_MAX`` rows: Gauss–Jordan elimination without pivoting on [S | b]
+    ``unrolled``: ``None`` (default) picks by size, ``True``/``False`` forces one of the two
+    ways (for benchmarks/spd_solve.py). Up to ``UNROLLED_SOLVE_MAX`` rows: Gauss–Jordan elimination without pivoting on [S | b]
     (stable for SPD matrices, like Cholesky), unrolled so that each elimination step is one
     elementwise update of the whole augmented array. XLA fuses each step into a single kernel,
     where an unrolled Cholesky with per-entry updates needed ~4 kernels per row (measured on the
     one-joint slider–crank, 82 → 43 kernels per right-hand side, 4.7 → 3.6 µs). LAPACK Cholesky above.
     """
     m = matrix.shape[0]
-    if m > UNROLLED_SOLVE_MAX:
+    if unrolled is None:
+        unrolled = m <= UNROLLED_SOLVE_MAX
+    if not unrolled:
         return jsl.cho_solve(jsl.cho_factor(matrix), rhs)
     aug = jnp.concatenate([matrix, rhs[:, None]], axis=1)
     rows = jnp.arange(m)[:, None]

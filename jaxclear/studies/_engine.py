@@ -23,9 +23,9 @@ Nothing here reads or writes files.
 """
 
 import collections
-import concurrent.futures
 import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -232,6 +232,7 @@ def map_members(
     settings: EnsembleSettings = EnsembleSettings(),
     on_chunk: Callable[[int, int], Any] | None = None,
     batched: bool = False,
+    concurrent: bool = False,
 ):
     """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
 
@@ -248,12 +249,16 @@ def map_members(
             devices) and ``devices`` (to split each chunk over); its other fields are not used
             here.
         on_chunk: ``on_chunk(start, stop)`` after rows ``start:stop`` are done.
-        batched: ``fn`` takes a whole chunk (or a device's share of it, the shares run one
-            after another: at once they deadlocked in LAPACK's batched Cholesky) instead of one row:
+        batched: ``fn`` takes a whole chunk (or a device's share of it) instead of one row:
             ``fn(rows, count, *args)`` with ``rows`` (C, p) and ``count`` (a traced int32
             scalar) the number of rows that are members (the rest pad the last chunk, and
             ``fn`` need not solve them); it returns outputs with a leading axis of C. For a
             function that vectorises itself (``run_ensemble``'s refilled chunks).
+        concurrent: with ``batched``, the devices' shares run at once (each from its own
+            thread, as unbatched shares always do); otherwise one after another. Only for a
+            ``fn`` whose loops call no LAPACK routine: two refilled programs with a batched
+            LAPACK Cholesky in their step loops, running at once on two CPU devices, deadlocked
+            (see ``jaxclear.studies._ensemble.concurrent_refill``).
 
     Returns:
         ``fn``'s outputs as NumPy arrays with a leading axis of N.
@@ -300,14 +305,14 @@ def map_members(
                     out = _vmap_chunk(fn, args, rows)
                 return jax.block_until_ready(out)
 
-            if batched:
-                # one share after another: two refilled programs run at once on two CPU devices
-                # deadlocked (both in LAPACK's batched Cholesky, each waiting on the shared
-                # thread pool for work the other one's wait blocked; a Monte Carlo of 1000
-                # case-a members hung with 0 % CPU)
+            if batched and not concurrent:
+                # one share after another: two refilled programs with LAPACK's batched Cholesky
+                # in their step loops, run at once on two CPU devices, deadlocked (both in
+                # lapack_dpotrf_ffi, each waiting on the shared thread pool; a Monte Carlo of
+                # 1000 case-a members hung with 0 % CPU)
                 parts = [run(k) for k in range(len(devs))]
             else:
-                with concurrent.futures.ThreadPoolExecutor(len(devs)) as pool:
+                with ThreadPoolExecutor(len(devs)) as pool:
                     parts = list(pool.map(run, range(len(devs))))
         pending.append((start, len(part), parts))
         if len(pending) > 1:
