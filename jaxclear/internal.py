@@ -6,7 +6,9 @@
 """
 
 from ._core._error_mode import set_error_mode as set_error_mode
+from .solve._lanes import DEFAULT_LANES as DEFAULT_LANES
 from .studies._engine import DEFAULT_CHUNK as DEFAULT_CHUNK
+from .studies._engine import ENGINES as ENGINES
 from .studies._ensemble import EVENTS_PER_REVOLUTION as EVENTS_PER_REVOLUTION
 from .studies._ensemble import inadmissible_values as inadmissible_values
 from .studies._ensemble_result import MANIFEST as MANIFEST

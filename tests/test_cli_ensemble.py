@@ -110,6 +110,7 @@ def test_montecarlo_writes_outputs(montecarlo_run):
         "B.clearance": {"fit": FIT, "diameter": DIAMETER, "within": "uniform"}
     }
     assert (info["devices"], info["chunk_size"]) == (1, 4)
+    assert (info["engine"], info["lanes"]) == ("refill", 8)  # the defaults
     assert info["continuous_fraction"] == DEFAULT_CONTINUOUS_FRACTION  # not set in the file
     assert info["config"]["clearance"]["joints"] == "B"
     assert info["wall_time_s"] > 0 and info["versions"]["jaxclear"]
@@ -262,6 +263,7 @@ BAD_MONTECARLO = {
     ),
     "no samples": ("[montecarlo.B]\nclearance = 3e-4\n", ["--samples", "0"], "--samples 0"),
     "zero chunk": ("[montecarlo.B]\nclearance = 3e-4\n", ["--chunk-size", "0"], "--chunk-size"),
+    "zero lanes": ("[montecarlo.B]\nclearance = 3e-4\n", ["--lanes", "0"], "--lanes 0"),
     "more devices than cores": (
         "[montecarlo.B]\nclearance = 3e-4\n",
         ["--devices", "100000"],
@@ -389,7 +391,7 @@ def test_two_cpu_devices_in_a_fresh_process(tmp_path):
     assert info["device_flag"] == f"{DEVICE_COUNT_FLAG}=2"
     assert info["compilation_cache"] == env["JAXCLEAR_CACHE_DIR"]
     stored = [p.name for p in (tmp_path / "cache").iterdir()]
-    assert any(name.startswith("jit__vmap_chunk") for name in stored), stored
+    assert any(name.startswith("jit__refill_solve") for name in stored), stored
 
 
 def test_resume_drops_a_torn_last_row(montecarlo_run, tmp_path, capsys):

@@ -21,7 +21,14 @@ from typing import Any
 import jaxclear
 
 from ..analysis import DEFAULT_CONTINUOUS_FRACTION
-from ..internal import DEFAULT_CHUNK, MANIFEST, ResumeWarning, read_table
+from ..internal import (
+    DEFAULT_CHUNK,
+    DEFAULT_LANES,
+    ENGINES,
+    MANIFEST,
+    ResumeWarning,
+    read_table,
+)
 from ..io import package_versions, write_json
 from ..studies import EnsembleError, EnsembleSettings
 from ._common import (
@@ -42,7 +49,15 @@ from ._prepare import grid, kept_start, prepare_output, solver_for
 DEVICE_COUNT_FLAG = "--xla_force_host_platform_device_count"
 """XLA flag that exposes the CPU as this many JAX devices, each running its own share of a chunk."""
 
-ENSEMBLE_FLAGS = ("--chunk-size", "--devices", "--member", "--no-progress", "--quiet")
+ENSEMBLE_FLAGS = (
+    "--chunk-size",
+    "--devices",
+    "--engine",
+    "--lanes",
+    "--member",
+    "--no-progress",
+    "--quiet",
+)
 """Options every ensemble command adds (for 'did you mean' hints)."""
 
 
@@ -65,7 +80,8 @@ def _engine_options(prepared) -> dict:
 
 
 def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add ``--chunk-size``, ``--devices``, ``--member``, ``--no-progress`` and ``--quiet``."""
+    """Add ``--chunk-size``, ``--devices``, ``--engine``, ``--lanes``, ``--member``,
+    ``--no-progress`` and ``--quiet``."""
     parser.add_argument(
         "--chunk-size",
         type=int,
@@ -81,6 +97,23 @@ def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="devices to spread each chunk over (default: every core this process may use, "
         f"exposed to JAX by XLA_FLAGS={DEVICE_COUNT_FLAG}=N on a CPU; every GPU on a GPU host)",
+    )
+    parser.add_argument(
+        "--engine",
+        choices=ENGINES,
+        default=EnsembleSettings().engine,
+        help=f"how a chunk is solved (default {EnsembleSettings().engine}): 'refill', on --lanes "
+        "lanes where a lane whose member is done takes the next one at once; 'lockstep', one "
+        "vectorised solve of the chunk's members, each waiting for the slowest (see "
+        "docs/ensembles.md, 'Which engine is faster')",
+    )
+    parser.add_argument(
+        "--lanes",
+        type=int,
+        default=DEFAULT_LANES,
+        metavar="L",
+        help=f"members integrated at once per device by the refill engine (default "
+        f"{DEFAULT_LANES}; a GPU wants far more)",
     )
     parser.add_argument(
         "--member",
@@ -184,6 +217,8 @@ def prepare(args: argparse.Namespace, command: str) -> Prepared:
     solver_for(settings)  # reject a bad solver name before any work
     if args.chunk_size < 1:
         raise UsageError(f"--chunk-size {args.chunk_size}: give 1 or more members per chunk")
+    if args.lanes < 1:
+        raise UsageError(f"--lanes {args.lanes}: give 1 or more lanes (members at once)")
     if args.devices is not None and args.devices < 1:
         raise UsageError(f"--devices {args.devices}: give 1 or more")
     if args.devices is not None and not accelerator_plugins() and args.devices > usable_cores():
@@ -305,7 +340,13 @@ def run_engine(
     quiet = args.quiet
     progress = not (quiet or args.no_progress)  # a bar on a terminal, timed lines in a log
     engine = EnsembleSettings(
-        chunk_size=chunk, devices=devices, out=out_dir, table_name=table_name, progress=progress
+        chunk_size=chunk,
+        devices=devices,
+        out=out_dir,
+        table_name=table_name,
+        progress=progress,
+        engine=args.engine,
+        lanes=args.lanes,
     )
     say(
         f"{len(devices)} {devices[0].platform.upper()} device{'s' if per > 1 else ''}, "
@@ -373,6 +414,8 @@ def base_info(prepared: Prepared, outcome: Outcome, argv: list[str], fmt: int) -
         "fast_compile": prepared.fast_compile,
         "compilation_cache": prepared.compilation_cache,
         "chunk_size": outcome.settings.chunk_size,
+        "engine": outcome.settings.engine,
+        "lanes": outcome.settings.lanes,
         "already_finished": outcome.already_finished,
         "run_now": outcome.run_now,
         "wall_time_s": outcome.wall_time_s,
@@ -521,7 +564,9 @@ def replay(
     devices = local_devices(args.devices)
     per = len(devices)
     chunk = _chunk_size(args.chunk_size, n, per)
-    engine = EnsembleSettings(chunk_size=chunk, devices=devices, progress=False)
+    engine = EnsembleSettings(
+        chunk_size=chunk, devices=devices, progress=False, engine=args.engine, lanes=args.lanes
+    )
     target = member_folder(out_dir, member)
     staged = StagedOutput(target, f"--out {str(out_dir)!r}: member folder")
     try:

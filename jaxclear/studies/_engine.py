@@ -117,11 +117,13 @@ class EnsembleSettings(eqx.Module):
         table_name: file name of the member table in ``out``.
         progress: show a progress bar over members.
         engine: how ``run_ensemble`` (``montecarlo``, ``sweep``) solves a chunk (``ENGINES``):
-            ``"lockstep"`` (default), one vmapped ``simulate`` of its members, which steps them
-            all until the slowest one ends; ``"refill"``, ``jaxclear.solve.solve_members`` on
-            ``lanes`` lanes, where a lane whose member has finished takes the next one of the
-            chunk at once (the same per-member results to rounding: docs/ensembles.md, "The
-            engine"). ``map_members`` and the sweeps built on it always run lockstep.
+            ``"refill"`` (default), ``jaxclear.solve.solve_members`` on ``lanes`` lanes, where
+            a lane whose member has finished takes the next one of the chunk at once;
+            ``"lockstep"``, one vmapped ``simulate`` of its members, which steps them all until
+            the slowest one ends (the same per-member results to rounding: docs/ensembles.md,
+            "The engine"). Refilling was the faster on one and two CPU devices, cases a and c
+            (docs/ensembles.md, "Which engine is faster"). ``map_members`` and the sweeps built
+            on it always run lockstep.
         lanes: members integrated at once by the ``"refill"`` engine (default
             ``jaxclear.solve._lanes.DEFAULT_LANES``, the faster of 8 and 32 on one CPU core,
             benchmarks/lane_refill.py); ignored by ``"lockstep"``.
@@ -136,7 +138,7 @@ class EnsembleSettings(eqx.Module):
     out: Path | None = eqx.field(static=True, default=None, converter=_folder)
     table_name: str = eqx.field(static=True, default="members.csv")
     progress: bool = eqx.field(static=True, default=True, converter=_flag)
-    engine: str = eqx.field(static=True, default="lockstep")
+    engine: str = eqx.field(static=True, default="refill")
     lanes: int = eqx.field(static=True, default=DEFAULT_LANES, converter=_whole)
 
     def __check_init__(self):
