@@ -243,7 +243,12 @@ def test_new_values_reuse_the_compiled_loop(lanes, alone):
         ({"rpm": [5000.0, 4000.0]}, [0.01], {}, "t1 must be a finite number"),
         ({"rpm": [5000.0]}, 0.01, {"y0": np.zeros((1, 3))}, r"y0 must have shape \(N, state\)"),
         ({"rpm": [5000.0]}, 0.01, {"ts": [0.005, 0.001]}, "ts must be .* increasing"),
-        ({"rpm": [5000.0]}, 0.01, {"ts": np.zeros((1, 2))}, "ts must be a non-empty 1-D array"),
+        (
+            {"rpm": [5000.0]},
+            0.01,
+            {"ts": np.zeros((2, 2))},
+            r"ts must be a non-empty \(T,\) array, or \(N, T\)",
+        ),
     ],
 )
 def test_bad_input_names_the_argument(values, t1, options, match):

@@ -56,8 +56,10 @@ def test_section_from_t1_phase_and_dense_output(ideal):
     )
 
 
-def test_bifurcation_points_equal_single_sections(ideal):
-    """A sweep over the crank speed: one vmapped chunk equals the loop of single sections, and each
+@pytest.mark.parametrize("engine", ["refill", "lockstep"])
+def test_bifurcation_points_equal_single_sections(ideal, engine):
+    """A sweep over the crank speed: one chunk, refilled (each member's own section instants as
+    its output times) or a vmapped lockstep solve, equals the loop of single sections, and each
     value's points sit at its own quarter revolution (slider speed −r ω(rpm))."""
     rpms = np.array([3000.0, 4000.0, 6000.0])
     diagram = bifurcation_points(
@@ -67,7 +69,7 @@ def test_bifurcation_points_equal_single_sections(ideal):
         4,
         phase=np.pi / 2,
         signals=["slider_v"],
-        settings=jaxclear.EnsembleSettings(chunk_size=4),
+        settings=jaxclear.EnsembleSettings(chunk_size=4, engine=engine, lanes=2),
     )
     assert diagram.points["slider_v"].shape == (3, 4)
     assert diagram.succeeded.all()

@@ -101,7 +101,7 @@ loop, one core (``taskset -c 1 python benchmarks/spd_solve.py``), unrolled vs LA
 9 rows 0.74 vs 0.65 µs and 12 rows 2.45 vs 0.85 µs. 9 rows are unrolled although they cost
 14–23 % more: that covers the ideal slider–crank and four-bar, so that their refilled ensemble
 programs call no LAPACK routine in the step loop and may run on several CPU devices at once
-(``jaxclear.studies._ensemble.concurrent_refill``)."""
+(``jaxclear.studies._engine.concurrent_refill``)."""
 
 
 def spd_solve(matrix, rhs, unrolled: bool | None = None):

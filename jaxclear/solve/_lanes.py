@@ -371,11 +371,14 @@ def _fill(program: _Program, ts, lane: _Lane, ys, saving):
     t_start, t_end, dense_info, keep = saving
     # the dense output's static parts (LawsonInterpolation's decay rows) stay out of the vmap
     dynamic, static = eqx.partition(dense_info, eqx.is_array)
-    size, n = ts.shape[0], ys.shape[0]
+    size, n = ts.shape[-1], ys.shape[0]
     interpolation = program.interpolation_cls
 
     def point(index):
-        return jnp.minimum(ts[jnp.minimum(index, size - 1)], lane.t1)
+        index = jnp.minimum(index, size - 1)
+        if ts.ndim == 1:  # one grid for all members
+            return jnp.minimum(ts[index], lane.t1)
+        return jnp.minimum(ts[jnp.clip(lane.member, 0, ts.shape[0] - 1), index], lane.t1)
 
     def pending(index):
         return keep & (index < size) & (point(index) <= t_end)
@@ -399,7 +402,8 @@ def _fill(program: _Program, ts, lane: _Lane, ys, saving):
 def _solve_lanes(program: _Program, rows, t0, t1, start, y0, lanes: int, ts=None, active=None):
     """The loop: all members' initial lanes, then steps with refills until every member is done.
 
-    With ``ts`` ((T,) output times), also the states there, (N, T, state). With ``active`` (a
+    With ``ts`` ((T,) output times, or (N, T): each member's own), also the states there,
+    (N, T, state). With ``active`` (a
     traced count), only the first ``active`` members are solved; the others are left as zeros
     (their rows pad a batch to a fixed shape, ``run_ensemble``'s refilled chunks)."""
     n = rows.shape[0]
@@ -415,7 +419,7 @@ def _solve_lanes(program: _Program, rows, t0, t1, start, y0, lanes: int, ts=None
     shapes = jax.eval_shape(jax.vmap(program.final), lane)
     out = jax.tree_util.tree_map(lambda s: jnp.zeros((n,) + s.shape[1:], s.dtype), shapes)
     if ts is not None:
-        ys = jnp.full((n, ts.shape[0]) + initial.y.shape[1:], jnp.inf, dtype=initial.y.dtype)
+        ys = jnp.full((n, ts.shape[-1]) + initial.y.shape[1:], jnp.inf, dtype=initial.y.dtype)
     else:
         ys = None
 
@@ -467,7 +471,7 @@ def _solve_lanes(program: _Program, rows, t0, t1, start, y0, lanes: int, ts=None
     if program.track:  # per member, as a vmapped simulate builds them
         out["extremes"] = jax.vmap(Tracker.extremes)(out.pop("tracker"))
     if ts is not None and ys is not None:
-        ts_members = jnp.minimum(ts[None, :], t1[:, None])
+        ts_members = jnp.minimum(ts if ts.ndim == 2 else ts[None, :], t1[:, None])
         if program.offset:  # back to the absolute impact memory, as _simulate_core converts
             shift = jax.vmap(
                 lambda row, y: jax.vmap(lambda x: memory_offset_shift(program.member(row), x))(y)
@@ -606,8 +610,9 @@ def solve_members(
             the host, ``jaxclear.solve.assemble``: pass those states for the same start).
         extremes: track each member's ``Extremes`` (as ``simulate``'s ``extremes``).
         contact_events: room for contact events per clearance joint (as ``simulate``'s).
-        ts: (T,) output times shared by all members (increasing, from t0 on), s; a time after a
-            member's t1 is clipped to it. Each member's states there come from its solver's
+        ts: output times (increasing, from t0 on), s: (T,) shared by all members, or (N, T),
+            one row per member (e.g. each member's Poincaré section instants, which depend on its
+            crank speed); a time after a member's t1 is clipped to it. Each member's states there come from its solver's
             dense output, as ``simulate``'s (``MemberSolutions.ys``, ``.trajectories()``).
             ``None`` (default): no output points.
         ideal: solve each member's ideal mechanism instead (``jaxclear.ideal_mechanism`` of
@@ -656,15 +661,17 @@ def solve_members(
     if ts is not None:
         ts = np.asarray(ts, dtype=float)
         if (
-            ts.ndim != 1
+            ts.ndim not in (1, 2)
+            or (ts.ndim == 2 and ts.shape[0] != n)
             or ts.size < 1
             or not np.all(np.isfinite(ts))
-            or np.any(np.diff(ts) < 0)
-            or ts[0] < t0
+            or np.any(np.diff(ts, axis=-1) < 0)
+            or np.any(ts[..., 0] < t0)
         ):
             raise ValueError(
-                f"ts must be a non-empty 1-D array of finite, increasing output times from "
-                f"t0 = {t0} on (a time after a member's t1 is clipped to it); got shape {ts.shape}."
+                f"ts must be a non-empty (T,) array, or (N, T) with one row per member (N = {n}), "
+                f"of finite, increasing output times from t0 = {t0} on (a time after a member's "
+                f"t1 is clipped to it); got shape {ts.shape}."
             )
         ts = jnp.asarray(ts)
     program = _Program(

@@ -35,8 +35,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core._errors import EnsembleError
+from ..dynamics._equations import UNROLLED_SOLVE_MAX
 from ..model import Mechanism, parameter_names
 from ..solve._lanes import DEFAULT_LANES
+from ..solve._solver import IMPLICIT, SolverConfig
+from ..solve._startup import ideal_mechanism
 
 DEFAULT_CHUNK = 64
 """Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
@@ -116,14 +119,15 @@ class EnsembleSettings(eqx.Module):
             resumes from them); ``None`` keeps nothing on disk.
         table_name: file name of the member table in ``out``.
         progress: show a progress bar over members.
-        engine: how ``run_ensemble`` (``montecarlo``, ``sweep``) solves a chunk (``ENGINES``):
+        engine: how ``run_ensemble`` (``montecarlo``, ``sweep``) and ``bifurcation_points``
+            solve a chunk (``ENGINES``):
             ``"refill"`` (default), ``jaxclear.solve.solve_members`` on ``lanes`` lanes, where
             a lane whose member has finished takes the next one of the chunk at once;
             ``"lockstep"``, one vmapped ``simulate`` of its members, which steps them all until
             the slowest one ends (the same per-member results to rounding: docs/ensembles.md,
             "The engine"). Refilling was the faster on one and two CPU devices, cases a and c
-            (docs/ensembles.md, "Which engine is faster"). ``map_members`` and the sweeps built
-            on it always run lockstep.
+            (docs/ensembles.md, "Which engine is faster"). ``map_members``' other users
+            (``lyapunov_sweep``, identification's scan) always run lockstep.
         lanes: members integrated at once by the ``"refill"`` engine (default
             ``jaxclear.solve._lanes.DEFAULT_LANES``, the faster of 8 and 32 on one CPU core,
             benchmarks/lane_refill.py); ignored by ``"lockstep"``.
@@ -220,6 +224,25 @@ def swept_values(mechanism: Mechanism, name: str, values) -> np.ndarray:
     return values
 
 
+def concurrent_refill(mechanism: Mechanism, config: SolverConfig) -> bool:
+    """Whether the refilled programs of ``mechanism`` solved with ``config`` (and of its ideal
+    mechanism, with the ``"fast"`` preset) may run at once on several devices: their step loops
+    call no LAPACK routine. Each device's share then runs from its own thread; otherwise the
+    shares run one after another (``map_members(..., concurrent=)``).
+
+    Two refilled programs of case a run at once on two CPU devices deadlocked, both in LAPACK's
+    batched Cholesky (``lapack_dpotrf_ffi``) of the ideal mechanism's 9-row constraint solve,
+    each waiting on the shared thread pool (a Monte Carlo of 256 members hung for 90 s at 0 %
+    CPU, twice; 20.2 s without that call). A loop is free of LAPACK when every constraint solve
+    is unrolled (at most ``UNROLLED_SOLVE_MAX`` rows) and the method needs no Newton linear
+    solve (the implicit Kvaerno methods factor a Jacobian; the IMEX ones solve their stiff
+    part in closed form). The initial assembly's batched LU runs once, before the loop; it has
+    not hung (1000 members of case a and of case c, 256 of case a).
+    """
+    rows = max(mechanism.num_constraints, ideal_mechanism(mechanism).num_constraints)
+    return rows <= UNROLLED_SOLVE_MAX and config.method not in IMPLICIT
+
+
 @eqx.filter_jit
 def _vmap_chunk(fn, args, values):
     """``fn(v, *args)`` for every row ``v`` of ``values``, vmapped."""
@@ -260,7 +283,7 @@ def map_members(
             thread, as unbatched shares always do); otherwise one after another. Only for a
             ``fn`` whose loops call no LAPACK routine: two refilled programs with a batched
             LAPACK Cholesky in their step loops, running at once on two CPU devices, deadlocked
-            (see ``jaxclear.studies._ensemble.concurrent_refill``).
+            (see ``concurrent_refill``).
 
     Returns:
         ``fn``'s outputs as NumPy arrays with a leading axis of N.

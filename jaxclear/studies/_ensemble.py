@@ -51,13 +51,12 @@ from ..analysis._modes import (
 )
 from ..analysis._signals import signal_names, signals
 from ..analysis._statistics import statistics
-from ..dynamics._equations import UNROLLED_SOLVE_MAX
 from ..model import Mechanism, get_parameter, parameter_info, with_parameters
 from ..solve._lanes import _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
-from ..solve._solver import IMPLICIT, SolverConfig, solver_config
+from ..solve._solver import SolverConfig, solver_config
 from ..solve._startup import ideal_mechanism
-from ._engine import EnsembleSettings, chunk_rows, cost_order, map_members
+from ._engine import EnsembleSettings, chunk_rows, concurrent_refill, cost_order, map_members
 from ._ensemble_result import FAILED, OK, EnsembleResult, mechanism_values, resume, save
 
 NON_NEGATIVE = frozenset({"friction_coefficient", "viscous_friction", "damping", "free_length"})
@@ -198,25 +197,6 @@ def _refill_summaries(members, ideal, mechanism, deviation, ts, start):
     return jax.vmap(lambda tr, idl: _summary(mechanism, deviation, tr, idl, ts, start))(
         trajectories, ideals
     )
-
-
-def concurrent_refill(mechanism: Mechanism, config: SolverConfig) -> bool:
-    """Whether the refilled programs of ``mechanism`` solved with ``config`` (and of its ideal
-    mechanism, with the ``"fast"`` preset) may run at once on several devices: their step loops
-    call no LAPACK routine. Each device's share then runs from its own thread; otherwise the
-    shares run one after another (``map_members(..., concurrent=)``).
-
-    Two refilled programs of case a run at once on two CPU devices deadlocked, both in LAPACK's
-    batched Cholesky (``lapack_dpotrf_ffi``) of the ideal mechanism's 9-row constraint solve,
-    each waiting on the shared thread pool (a Monte Carlo of 256 members hung for 90 s at 0 %
-    CPU, twice; 20.2 s without that call). A loop is free of LAPACK when every constraint solve
-    is unrolled (at most ``UNROLLED_SOLVE_MAX`` rows) and the method needs no Newton linear
-    solve (the implicit Kvaerno methods factor a Jacobian; the IMEX ones solve their stiff
-    part in closed form). The initial assembly's batched LU runs once, before the loop; it has
-    not hung (1000 members of case a and of case c, 256 of case a).
-    """
-    rows = max(mechanism.num_constraints, ideal_mechanism(mechanism).num_constraints)
-    return rows <= UNROLLED_SOLVE_MAX and config.method not in IMPLICIT
 
 
 def _refilled_chunk(values, count, arguments, lanes, keep=False):

@@ -12,6 +12,7 @@ from the solver's dense output at exactly those instants, not picked from a save
 import dataclasses
 from collections.abc import Sequence
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -21,9 +22,10 @@ from .._core._checks import is_concrete
 from ..analysis._orbits import distinct_points
 from ..analysis._signals import checked_signal_names, signal_names, signals
 from ..model import Mechanism, with_parameters
+from ..solve._lanes import _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
-from ._engine import EnsembleSettings, map_members, swept_values
+from ._engine import EnsembleSettings, concurrent_refill, map_members, swept_values
 
 DEFAULT_SKIP_REVOLUTIONS = 1
 """Start-up revolutions left out of a section by default: the journals start centred with the
@@ -249,6 +251,39 @@ def _bifurcation_member(v, mechanism, name, revolutions, t0, skip, names, config
     return _section(m, None, revolutions, t0, skip, names, config, phase, None, False)
 
 
+@eqx.filter_jit
+def _bifurcation_chunk(
+    rows, count, mechanism, name, revolutions, t0, skip, names, config, phase, lanes
+):
+    """A chunk of ``bifurcation_points`` on refilled lanes (``map_members(..., batched=True)``):
+    each row's section as ``_bifurcation_member`` gives it, from ``solve_members``' loop with
+    each member's own section instants as its output times (the solve ``simulate`` makes for
+    ``_section``: no extremes, no contact events, ends at the last instant)."""
+    times = jax.vmap(
+        lambda v: section_times(
+            with_parameters(mechanism, {name: v[0]}),
+            revolutions,
+            t0=t0,
+            skip_revolutions=skip,
+            phase=phase,
+        )
+    )(rows)
+    program = _Program(mechanism=mechanism, names=(name,), config=config, track=False, max_events=0)
+    starts = jnp.full(rows.shape[0], t0, dtype=float)
+    solution = members_solution(
+        program, rows, jnp.asarray(t0, dtype=float), times[:, -1], starts, None, lanes, times, count
+    )
+    trajectories = batched_trajectories(solution)
+
+    def one(trajectory):
+        ok = trajectory.succeeded
+        points = {n: jnp.where(ok, x, jnp.nan) for n, x in signals(trajectory, names).items()}
+        return points, ok
+
+    points, ok = jax.vmap(one)(trajectories)
+    return points, times, ok
+
+
 def bifurcation_points(
     mechanism: Mechanism,
     name: str,
@@ -263,7 +298,7 @@ def bifurcation_points(
     settings: EnsembleSettings = EnsembleSettings(),
 ) -> BifurcationDiagram:
     """Bifurcation diagram: the Poincaré section (``poincare_section``) for each value of one
-    named parameter, solved in vmapped chunks by the ensemble engine (``map_members``).
+    named parameter, solved in chunks by the ensemble engine (``map_members``).
 
     Every value gets ``revolutions`` points after ``skip_revolutions`` start-up revolutions of its
     own crank period (so a sweep over ``rpm`` skips the same number of revolutions, not the same
@@ -277,10 +312,13 @@ def bifurcation_points(
         values: its values (N,), SI units (``rpm`` in rev/min).
         revolutions: section points per value.
         t0, skip_revolutions, signals, solver, phase: as in ``poincare_section``.
-        settings: ``chunk_size`` (values per vectorised solve, at most the number of values: one
-            compilation per chunk size; a vmapped solve steps all members until the slowest is
-            done) and ``devices`` (to split each chunk over, default all local devices) of an
-            ``EnsembleSettings``; its other fields are not used here.
+        settings: ``chunk_size`` (values per vectorised solve, at most the number of values:
+            one compilation per chunk size), ``devices`` (to split each chunk over, default all
+            local devices), ``engine`` and ``lanes`` of an ``EnsembleSettings``: ``"refill"``
+            (default) solves a chunk on ``lanes`` lanes, a lane whose member is done taking
+            the next one at once (``jaxclear.solve.solve_members``, each member's section
+            instants as its output times); ``"lockstep"``, a vmapped ``poincare_section``,
+            steps all members until the slowest is done. Its other fields are not used here.
 
     Returns:
         A ``BifurcationDiagram``.
@@ -299,12 +337,21 @@ def bifurcation_points(
         raise ValueError(f"phase must be in [0, 2π) rad, got {phase!r}.")
     crank_speed(mechanism)
     config = solver_config(solver, mechanism)
-    points, times, ok = map_members(
-        _bifurcation_member,
-        (mechanism, name, revolutions, float(t0), skip, names, config, float(phase)),
-        values[:, None],
-        settings=dataclasses.replace(settings, chunk_size=min(settings.chunk_size, values.size)),
-    )
+    args = (mechanism, name, revolutions, float(t0), skip, names, config, float(phase))
+    chunked = dataclasses.replace(settings, chunk_size=min(settings.chunk_size, values.size))
+    if settings.engine == "refill":
+        points, times, ok = map_members(
+            _bifurcation_chunk,
+            (*args, settings.lanes),
+            values[:, None],
+            settings=chunked,
+            batched=True,
+            concurrent=concurrent_refill(mechanism, config),
+        )
+    else:
+        points, times, ok = map_members(
+            _bifurcation_member, args, values[:, None], settings=chunked
+        )
     return BifurcationDiagram(
         parameter=name,
         values=values,
