@@ -71,7 +71,7 @@ def worker(a):
     start = period
     points = int(round(a.revolutions * 360)) + 1
     options = dict(statistics_start=start, num_points=points, solver=a.solver)
-    out = {"devices": len(jax.local_devices()), "chunks": []}
+    out = {"devices": len(jax.local_devices()), "chunks": [], "engine": a.engine}
     if a.montecarlo:
         quiet = jaxclear.EnsembleSettings(progress=False, engine=a.engine)
         t = time.perf_counter()
@@ -137,9 +137,10 @@ def main():
     p.add_argument("--solver", default="auto")
     p.add_argument(
         "--engine",
-        default="lockstep",
+        default="refill",
         choices=("lockstep", "refill"),
-        help="run_ensemble's engine (EnsembleSettings.engine; refill: 8 lanes per device share)",
+        help="run_ensemble's engine (EnsembleSettings.engine, default refill as the library's: "
+        "8 lanes per device share)",
     )
     p.add_argument("--montecarlo", type=int, default=0)
     p.add_argument("--json", default=None, help="also write each device count's figures here")

@@ -228,7 +228,7 @@ def _ensemble_rows(table, ensemble):
             "x",
             5.0,
             at_least=True,
-            note=f"run_ensemble (lockstep), best chunk {chunk} of "
+            note=f"run_ensemble ({fig.get('engine', 'lockstep')}), best chunk {chunk} of "
             + ", ".join(map(str, per_core))
             + f"; serial loop {serial:.3f} s/member on {fig['cores']} core(s)",
         )
@@ -243,7 +243,9 @@ def _montecarlo_rows(table, runs):
             " s",
             30.0,
             comparable=mc is not None and mc["members"] == 1000,
-            note="run_ensemble, 2 devices on 2 cores, compilation included"
+            note="run_ensemble"
+            + ("" if mc is None else f" ({fig['2'].get('engine', 'lockstep')})")
+            + ", 2 devices on 2 cores, compilation included"
             + ("" if mc is None else f", {mc['members']} members, {mc['failed']} failed")
             + f"; JAX cache folder {entries} entries before",
         )
