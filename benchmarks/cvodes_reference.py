@@ -228,9 +228,7 @@ def _sx_vector_field(ca, model, joints_ideal, t, y):
             Q[3 * i] -= fx
             Q[3 * i + 1] -= fy
             Q[3 * i + 2] -= armI[0] * fy - armI[1] * fx
-        cinfo.append(
-            dict(i=i, k=k, e=e, ex=ex, ey=ey, edx=edx, edy=edy, nx=nx, ny=ny, delta=delta)
-        )
+        cinfo.append(dict(i=i, k=k, e=e, ex=ex, ey=ey, edx=edx, edy=edy, nx=nx, ny=ny, delta=delta))
         cinfo[-1].update(ddelta=ddelta, FN=FN, FT=FT, zdot=zdot, AI=AI, BI=BI, AII=AII, BII=BII)
 
     # constraints: ideal revolutes, slider on the x axis, slider not rotating, driver
@@ -477,8 +475,15 @@ def check_case(case, n_states=20, t_states=2e-3, t_traj=1e-3, rtol_traj=1e-10):
         return model.evaluate(t, y)[0]
 
     # states along a reference solve of the first t_states (Radau, as the reference runs)
-    sol = solve_ivp(ref_f, (0.0, t_states), y0, method="Radau", rtol=1e-8, atol=1e-11,
-                    t_eval=np.linspace(0.0, t_states, n_states + 1)[1:])
+    sol = solve_ivp(
+        ref_f,
+        (0.0, t_states),
+        y0,
+        method="Radau",
+        rtol=1e-8,
+        atol=1e-11,
+        t_eval=np.linspace(0.0, t_states, n_states + 1)[1:],
+    )
     states = [(0.0, y0)] + list(zip(sol.t, sol.y.T))
     FR = np.array([ref_f(t, y) for t, y in states])
     FC = np.array([np.array(f(t, y)).ravel() for t, y in states])
@@ -522,8 +527,15 @@ def check_case(case, n_states=20, t_states=2e-3, t_traj=1e-3, rtol_traj=1e-10):
     F, _ = make_integrator(meta, grid, rtol=rtol_traj, atol=rtol_traj * 1e-3)
     Yc = np.array(F(x0=y0)["xf"])
     t_ref = time.perf_counter()
-    sr = solve_ivp(ref_f, (0.0, t_traj), y0, method="DOP853", rtol=rtol_traj,
-                   atol=rtol_traj * 1e-3, t_eval=grid)
+    sr = solve_ivp(
+        ref_f,
+        (0.0, t_traj),
+        y0,
+        method="DOP853",
+        rtol=rtol_traj,
+        atol=rtol_traj * 1e-3,
+        t_eval=grid,
+    )
     t_ref = time.perf_counter() - t_ref
     Yr = sr.y
     ecc = meta["outputs"].map(len(grid))
@@ -533,8 +545,10 @@ def check_case(case, n_states=20, t_states=2e-3, t_traj=1e-3, rtol_traj=1e-10):
         j: 1e6 * float(np.max(np.hypot(*(Ec[2 * a : 2 * a + 2] - Er[2 * a : 2 * a + 2]))))
         for a, j in enumerate(meta["joints"])
     }
-    peak_ecc = {j: 1e6 * float(np.max(np.hypot(*Er[2 * a : 2 * a + 2])))
-                for a, j in enumerate(meta["joints"])}
+    peak_ecc = {
+        j: 1e6 * float(np.max(np.hypot(*Er[2 * a : 2 * a + 2])))
+        for a, j in enumerate(meta["joints"])
+    }
     fn = np.array(ecc(grid[None, :], Yr)[2])
     return dict(
         case=case,

@@ -28,8 +28,12 @@ def main():
             run = simulate_revolutions(mechanism, args.revolutions, companions=k)
             best = min(best, time.perf_counter() - start)
         times[k] = best
-        print(f"companions {k}: {best:.3f} s (best of {args.repeats}), {int(run.trajectory.num_steps)} nominal steps")
-    print(f"ratio with {args.companions} companions / nominal alone: {times[args.companions] / times[0]:.2f}")
+        print(
+            f"companions {k}: {best:.3f} s (best of {args.repeats}), {int(run.trajectory.num_steps)} nominal steps"
+        )
+    print(
+        f"ratio with {args.companions} companions / nominal alone: {times[args.companions] / times[0]:.2f}"
+    )
 
 
 if __name__ == "__main__":

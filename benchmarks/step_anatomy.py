@@ -43,7 +43,9 @@ def loop_floor(n_state, steps, t1, ts, repeats):
     import jax
     import jax.numpy as jnp
 
-    saveat = diffrax.SaveAt(subs=[diffrax.SubSaveAt(ts=jnp.asarray(ts)), diffrax.SubSaveAt(t1=True)])
+    saveat = diffrax.SaveAt(
+        subs=[diffrax.SubSaveAt(ts=jnp.asarray(ts)), diffrax.SubSaveAt(t1=True)]
+    )
     controller = diffrax.PIDController(rtol=bc.RTOL, atol=bc.ATOL, dtmax=t1 / steps)
 
     @jax.jit
@@ -92,9 +94,7 @@ def main():
         t1, ts = bc.grid(2.0)
 
         def solve(extremes):
-            traj = jaxclear.simulate(
-                mech, t1, ts=ts, solver=config, throw=False, extremes=extremes
-            )
+            traj = jaxclear.simulate(mech, t1, ts=ts, solver=config, throw=False, extremes=extremes)
             jax.block_until_ready(traj.q)
             return traj
 
