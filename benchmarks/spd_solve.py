@@ -1,8 +1,8 @@
 """The constraint solve's two ways, unrolled Gauss–Jordan against LAPACK Cholesky, per solve.
 
-``jaxclear.dynamics._equations.spd_solve`` unrolls systems of up to ``UNROLLED_SOLVE_MAX`` rows.
-This prints the time per solve of each way, inside one compiled ``fori_loop`` of 20 000
-iterations, for one lane and vmapped over several (as in ensembles), on random SPD matrices. Pin
+``jaxclear.dynamics.spd_solve`` (the constraint solve of the equations of motion) unrolls
+systems of up to ``UNROLLED_SOLVE_MAX`` rows. This prints the time per solve of each way, inside
+one compiled ``fori_loop`` of 20 000 iterations, for one lane and vmapped over several (as in ensembles), on random SPD matrices. Pin
 it to one core for figures that compare (``taskset -c 1``)::
 
     python benchmarks/spd_solve.py --rows 7,9,12 --lanes 1,8,64
@@ -15,7 +15,7 @@ import jax
 import numpy as np
 
 import jaxclear  # noqa: F401  (float64)
-from jaxclear.dynamics._equations import UNROLLED_SOLVE_MAX, spd_solve
+from jaxclear.dynamics import UNROLLED_SOLVE_MAX, spd_solve
 
 ITERATIONS = 20_000
 

@@ -8,8 +8,10 @@ from ._constraints import constraint_jacobian as constraint_jacobian
 from ._constraints import constraint_velocity as constraint_velocity
 from ._constraints import constraints as constraints
 from ._constraints import gamma as gamma
+from ._equations import UNROLLED_SOLVE_MAX as UNROLLED_SOLVE_MAX
 from ._equations import Evaluation as Evaluation
 from ._equations import clearance_outputs as clearance_outputs
 from ._equations import evaluate as evaluate
 from ._equations import initial_state as initial_state
+from ._equations import spd_solve as spd_solve
 from ._equations import vector_field as vector_field
