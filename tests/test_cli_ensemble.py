@@ -6,6 +6,7 @@ draws or sweeps B.clearance only: one compilation of the engine's chunk serves t
 20 s on one core); each later call traces once (about a second) and solves in a fraction of one.
 """
 
+import argparse
 import csv
 import json
 import os
@@ -421,3 +422,23 @@ def test_resume_refuses_a_row_changed_by_hand(montecarlo_run, tmp_path, capsys):
     lines[2] = "x" + lines[2]  # the second member's index is no longer a number
     table.write_text("".join(lines))
     assert_usage_error(capsys, montecarlo_argv(out), "line 3: not a member row")
+
+
+def test_replay_takes_the_recorded_engine_unless_given(tmp_path):
+    """``--member K`` replays with the engine and lanes the ensemble's JSON summary records (the
+    same program, so its statistics can equal the row bitwise); options given win; without a
+    summary (or one written before the options existed) the defaults."""
+    from jaxclear.cli._ensemble_common import _recorded_engine
+
+    def args(engine=None, lanes=None):
+        return argparse.Namespace(engine=engine, lanes=lanes)
+
+    assert _recorded_engine(args(), tmp_path, "montecarlo") == {"engine": "refill", "lanes": 8}
+    (tmp_path / "summary.json").write_text(json.dumps({"engine": "lockstep", "lanes": 4}))
+    (tmp_path / "sweep.json").write_text(json.dumps({"chunk_size": 4}))  # no engine recorded
+    assert _recorded_engine(args(), tmp_path, "montecarlo") == {"engine": "lockstep", "lanes": 4}
+    assert _recorded_engine(args("refill", 16), tmp_path, "montecarlo") == {
+        "engine": "refill",
+        "lanes": 16,
+    }
+    assert _recorded_engine(args(), tmp_path, "sweep") == {"engine": "refill", "lanes": 8}

@@ -64,6 +64,7 @@ def test_cli_replay_writes_a_run_equal_to_its_row(ensemble, replayed):
         assert repr(float(value)) == row[name], name
     member = run["member"]
     assert member["index"] == MEMBER and member["exact_chunk"] is True
+    assert (member["engine"], member["lanes"]) == ("refill", 8)  # the ensemble's, as recorded
     assert member["num_steps"] == int(row["num_steps"])
     for name, value in member["ensemble_statistics"].items():
         assert repr(float(value)) == row[name], name

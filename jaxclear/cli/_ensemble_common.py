@@ -9,6 +9,7 @@ written after every chunk, resumed when the same command runs again.
 import argparse
 import csv
 import dataclasses
+import json
 import math
 import os
 import time
@@ -101,19 +102,20 @@ def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--engine",
         choices=ENGINES,
-        default=EnsembleSettings().engine,
-        help=f"how a chunk is solved (default {EnsembleSettings().engine}): 'refill', on --lanes "
-        "lanes where a lane whose member is done takes the next one at once; 'lockstep', one "
-        "vectorised solve of the chunk's members, each waiting for the slowest (see "
-        "docs/ensembles.md, 'Which engine is faster')",
+        default=None,
+        help=f"how a chunk is solved (default {EnsembleSettings().engine}; with --member, the "
+        "ensemble's own as its JSON summary records it): 'refill', on --lanes lanes where a lane "
+        "whose member is done takes the next one at once; 'lockstep', one vectorised solve of "
+        "the chunk's members, each waiting for the slowest (see docs/ensembles.md, 'Which "
+        "engine is faster')",
     )
     parser.add_argument(
         "--lanes",
         type=int,
-        default=DEFAULT_LANES,
+        default=None,
         metavar="L",
         help=f"members integrated at once per device by the refill engine (default "
-        f"{DEFAULT_LANES}; a GPU wants far more)",
+        f"{DEFAULT_LANES}, or with --member the ensemble's own; a GPU wants far more)",
     )
     parser.add_argument(
         "--member",
@@ -217,7 +219,7 @@ def prepare(args: argparse.Namespace, command: str) -> Prepared:
     solver_for(settings)  # reject a bad solver name before any work
     if args.chunk_size < 1:
         raise UsageError(f"--chunk-size {args.chunk_size}: give 1 or more members per chunk")
-    if args.lanes < 1:
+    if args.lanes is not None and args.lanes < 1:
         raise UsageError(f"--lanes {args.lanes}: give 1 or more lanes (members at once)")
     if args.devices is not None and args.devices < 1:
         raise UsageError(f"--devices {args.devices}: give 1 or more")
@@ -345,8 +347,8 @@ def run_engine(
         out=out_dir,
         table_name=table_name,
         progress=progress,
-        engine=args.engine,
-        lanes=args.lanes,
+        engine=args.engine or EnsembleSettings().engine,
+        lanes=args.lanes or DEFAULT_LANES,
     )
     say(
         f"{len(devices)} {devices[0].platform.upper()} device{'s' if per > 1 else ''}, "
@@ -516,6 +518,26 @@ def summary_lines(result, summary: dict[str, Any], kind: str = "montecarlo") -> 
     return lines
 
 
+SUMMARIES = {"montecarlo": "summary.json", "sweep": "sweep.json"}
+"""The JSON summary each ensemble command writes when it finishes (it records the engine)."""
+
+
+def _recorded_engine(args: argparse.Namespace, out_dir: Path, kind: str) -> dict[str, Any]:
+    """``engine`` and ``lanes`` for a replay: the options when given, else what the ensemble's
+    JSON summary in ``out_dir`` records (summaries written before the option existed, or no
+    summary: the defaults)."""
+    recorded = {}
+    path = out_dir / SUMMARIES[kind]
+    if path.is_file():
+        try:
+            recorded = json.loads(path.read_text())
+        except (OSError, ValueError):
+            recorded = {}
+    engine = args.engine or recorded.get("engine") or EnsembleSettings().engine
+    lanes = args.lanes or recorded.get("lanes") or DEFAULT_LANES
+    return {"engine": engine, "lanes": int(lanes)}
+
+
 def member_folder(out_dir: Path, member: int) -> Path:
     """Where ``--member K`` writes its run: ``DIR/member-K`` inside the ensemble's folder."""
     return out_dir / f"member-{member}"
@@ -565,13 +587,13 @@ def replay(
     per = len(devices)
     chunk = _chunk_size(args.chunk_size, n, per)
     engine = EnsembleSettings(
-        chunk_size=chunk, devices=devices, progress=False, engine=args.engine, lanes=args.lanes
+        chunk_size=chunk, devices=devices, progress=False, **_recorded_engine(args, out_dir, kind)
     )
     target = member_folder(out_dir, member)
     staged = StagedOutput(target, f"--out {str(out_dir)!r}: member folder")
     try:
         say(
-            f"replaying member {member} of {n} (chunks of {chunk} on {per} "
+            f"replaying member {member} of {n} ({engine.engine} engine, chunks of {chunk} on {per} "
             f"{devices[0].platform.upper()} device{'s' if per > 1 else ''}"
             f"{', chunk rebuilt from ' + str(table) if steps is not None else ''}) ...",
             flush=True,
@@ -624,6 +646,8 @@ def replay(
             "chunk": replayed.chunk,
             "lane": replayed.lane,
             "chunk_size": replayed.chunk_size,
+            "engine": engine.engine,
+            "lanes": engine.lanes,
             "devices": per,
             "exact_chunk": replayed.exact_chunk,
             "note": (
@@ -668,7 +692,7 @@ def replay(
             say(
                 f"note: {len(differ)} statistics differ from row {member} of {table} "
                 f"({', '.join(differ[:4])}): the ensemble ran with other settings (chunk size, "
-                "devices, solver, ...) than this command"
+                "devices, engine, solver, ...) than this command"
             )
         else:
             say(f"statistics bitwise equal to row {member} of {table}")
