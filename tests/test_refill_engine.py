@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 import jax
@@ -19,7 +20,7 @@ import pytest
 from cases import one_joint_b
 
 import jaxclear
-from jaxclear.studies import EnsembleError, EnsembleSettings
+from jaxclear.studies import EnsembleError, EnsembleSettings, map_members
 
 STATISTICS_RTOL = 1e-12
 """A refilled member's statistics against the same member solved in lockstep, relative: the two
@@ -131,3 +132,24 @@ def test_refilled_shares_run_at_once_on_two_devices(runs):
             equal_nan=True,
             err_msg=name,
         )
+
+
+def _doubled(rows, count):
+    return rows * 2.0
+
+
+def test_shares_that_cannot_run_at_once_say_so():
+    """A batched function on several devices whose shares must run one after another (the refill
+    engine's programs with LAPACK in their loops) warns, naming the way to use every device;
+    the results are those of the shares run at once. (Two entries of one CPU device stand in
+    for two devices: the split is the same.)"""
+    device = jax.local_devices()[0]
+    settings = EnsembleSettings(chunk_size=4, devices=[device, device], progress=False)
+    rows = np.arange(10.0)[:, None]
+    with pytest.warns(UserWarning, match="one after another .* engine='lockstep'"):
+        serial = map_members(_doubled, (), rows, settings=settings, batched=True)
+    np.testing.assert_array_equal(serial, 2.0 * rows)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no warning when the shares run at once
+        at_once = map_members(_doubled, (), rows, settings=settings, batched=True, concurrent=True)
+    np.testing.assert_array_equal(at_once, serial)

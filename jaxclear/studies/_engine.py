@@ -24,6 +24,7 @@ Nothing here reads or writes files.
 
 import collections
 import os
+import warnings
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -292,6 +293,15 @@ def map_members(
     devs = _split_devices(settings.devices)
     chunk = chunk_size_for(settings.chunk_size, devs)
     per = chunk // len(devs) if devs else chunk
+    if batched and not concurrent and devs is not None and len(devs) > 1:
+        warnings.warn(
+            f"the refilled shares of each chunk run one after another on the {len(devs)} "
+            "devices, not at once: this mechanism's step loop would call LAPACK (a constraint "
+            "solve of more than UNROLLED_SOLVE_MAX rows, or an implicit Kvaerno method), and "
+            "such programs deadlocked when run at once; engine='lockstep' (--engine lockstep) "
+            "uses all devices at once",
+            stacklevel=3,
+        )
     outputs = []
     pending = collections.deque()
 
