@@ -85,7 +85,8 @@ def main() -> None:
             )
             print(
                 f"{name}: members agreeing (of {len(diff)}, relative to its largest value): "
-                f"{counts}; median difference {np.nanmedian(diff):.1e}, largest {np.nanmax(diff):.1e}"
+                f"{counts}; median difference {np.nanmedian(diff):.1e}, "
+                f"largest {np.nanmax(diff):.1e}"
             )
 
 

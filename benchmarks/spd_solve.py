@@ -2,8 +2,8 @@
 
 ``jaxclear.dynamics.spd_solve`` (the constraint solve of the equations of motion) unrolls
 systems of up to ``UNROLLED_SOLVE_MAX`` rows. This prints the time per solve of each way, inside
-one compiled ``fori_loop`` of 20 000 iterations, for one lane and vmapped over several (as in ensembles), on random SPD matrices. Pin
-it to one core for figures that compare (``taskset -c 1``)::
+one compiled ``fori_loop`` of 20 000 iterations, for one lane and vmapped over several (as in
+ensembles), on random SPD matrices. Pin it to one core for figures that compare (``taskset -c 1``)::
 
     python benchmarks/spd_solve.py --rows 7,9,12 --lanes 1,8,64
 """

@@ -108,8 +108,8 @@ def spd_solve(matrix, rhs, unrolled: bool | None = None):
     """Solve S x = b for a small symmetric positive definite S.
 
     ``unrolled``: ``None`` (default) picks by size, ``True``/``False`` forces one of the two
-    ways (for benchmarks/spd_solve.py). Up to ``UNROLLED_SOLVE_MAX`` rows: Gauss–Jordan elimination without pivoting on [S | b]
-    (stable for SPD matrices, like Cholesky), unrolled so that each elimination step is one
+    ways (for benchmarks/spd_solve.py). Up to ``UNROLLED_SOLVE_MAX`` rows: Gauss–Jordan
+    elimination without pivoting on [S | b] (stable for SPD matrices, like Cholesky), unrolled so that each elimination step is one
     elementwise update of the whole augmented array. XLA fuses each step into a single kernel,
     where an unrolled Cholesky with per-entry updates needed ~4 kernels per row (measured on the
     one-joint slider–crank, 82 → 43 kernels per right-hand side, 4.7 → 3.6 µs). LAPACK Cholesky above.

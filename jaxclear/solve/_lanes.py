@@ -612,8 +612,8 @@ def solve_members(
         contact_events: room for contact events per clearance joint (as ``simulate``'s).
         ts: output times (increasing, from t0 on), s: (T,) shared by all members, or (N, T),
             one row per member (e.g. each member's Poincaré section instants, which depend on its
-            crank speed); a time after a member's t1 is clipped to it. Each member's states there come from its solver's
-            dense output, as ``simulate``'s (``MemberSolutions.ys``, ``.trajectories()``).
+            crank speed); a time after a member's t1 is clipped to it. Each member's states
+            there come from its solver's dense output, as ``simulate``'s (``MemberSolutions.ys``, ``.trajectories()``).
             ``None`` (default): no output points.
         ideal: solve each member's ideal mechanism instead (``jaxclear.ideal_mechanism`` of
             the member: its clearance joints made ideal joints), as ``run_ensemble`` does for

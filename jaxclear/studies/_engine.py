@@ -225,22 +225,24 @@ def swept_values(mechanism: Mechanism, name: str, values) -> np.ndarray:
     return values
 
 
-def concurrent_refill(mechanism: Mechanism, config: SolverConfig) -> bool:
-    """Whether the refilled programs of ``mechanism`` solved with ``config`` (and of its ideal
-    mechanism, with the ``"fast"`` preset) may run at once on several devices: their step loops
-    call no LAPACK routine. Each device's share then runs from its own thread; otherwise the
-    shares run one after another (``map_members(..., concurrent=)``).
+def concurrent_refill(mechanism: Mechanism, config: SolverConfig, ideal: bool = True) -> bool:
+    """Whether the refilled programs of ``mechanism`` solved with ``config`` (and, with
+    ``ideal``, of its ideal mechanism: ``run_ensemble``'s deviations) may run at once on several
+    devices: their step loops call no LAPACK routine. Each device's share then runs from its
+    own thread; otherwise the shares run one after another (``map_members(..., concurrent=)``).
 
     Two refilled programs of case a run at once on two CPU devices deadlocked, both in LAPACK's
     batched Cholesky (``lapack_dpotrf_ffi``) of the ideal mechanism's 9-row constraint solve,
-    each waiting on the shared thread pool (a Monte Carlo of 256 members hung for 90 s at 0 %
-    CPU, twice; 20.2 s without that call). A loop is free of LAPACK when every constraint solve
+    each waiting on the shared thread pool (a Monte Carlo of 256 members stopped at 0 % CPU
+    until killed, after 300 s and after 90 s; 20.2 s without that call). A loop is free of LAPACK when every constraint solve
     is unrolled (at most ``UNROLLED_SOLVE_MAX`` rows) and the method needs no Newton linear
     solve (the implicit Kvaerno methods factor a Jacobian; the IMEX ones solve their stiff
     part in closed form). The initial assembly's batched LU runs once, before the loop; it has
     not hung (1000 members of case a and of case c, 256 of case a).
     """
-    rows = max(mechanism.num_constraints, ideal_mechanism(mechanism).num_constraints)
+    rows = mechanism.num_constraints
+    if ideal:
+        rows = max(rows, ideal_mechanism(mechanism).num_constraints)
     return rows <= UNROLLED_SOLVE_MAX and config.method not in IMPLICIT
 
 

@@ -316,7 +316,7 @@ class _Plan:
         if settings.engine == "refill":
             args = (args, settings.lanes, keep)
             rows = self.values[members]
-            concurrent = concurrent_refill(self.mechanism, self.config)
+            concurrent = concurrent_refill(self.mechanism, self.config, bool(self.deviation))
             return map_members(
                 _refilled_chunk, args, rows, settings=settings, batched=True, concurrent=concurrent
             )

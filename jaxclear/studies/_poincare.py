@@ -346,7 +346,7 @@ def bifurcation_points(
             values[:, None],
             settings=chunked,
             batched=True,
-            concurrent=concurrent_refill(mechanism, config),
+            concurrent=concurrent_refill(mechanism, config, ideal=False),
         )
     else:
         points, times, ok = map_members(
