@@ -202,3 +202,47 @@ def test_an_edit_anywhere_in_the_package_changes_the_key(tmp_path):
         f.write("\n# an edit\n")
     # compiled again (that the same source loads: test_beside_jax_persistent_cache)
     assert assemble() == 0
+
+
+ENSEMBLE = """
+import json, os, sys
+os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=2"
+import numpy as np
+import jaxclear
+from jaxclear.mechanisms import slider_crank
+jaxclear.enable_compilation_cache(sys.argv[1])
+settings = jaxclear.EnsembleSettings(chunk_size=4, progress=False)
+result = jaxclear.run_ensemble(
+    slider_crank(rpm=5000.0), {"rod_mass": 1.0 + 0.1 * np.arange(4)}, 2e-3, num_points=5,
+    settings=settings,
+)
+stats = {k: v.tolist() for k, v in result.statistics.items()}
+print(json.dumps({"stats": stats, "counts": jaxclear.compilation_cache_statistics()}))
+"""
+
+
+def test_a_refilled_ensemble_on_two_devices_loads_in_the_next_process(tmp_path):
+    """The refill engine's programs of a chunk split over two devices (each share compiled for its
+    own device, from its own thread) are stored, and a fresh process loads every one of them and
+    gives the same statistics. (Loaded programs had been told the backend's two devices and
+    failed to run; and a key had depended on which equal strings pickle memoised, so a process
+    that traced keyed the statistics program apart from one that loaded.)"""
+
+    def run():
+        done = subprocess.run(
+            [sys.executable, "-c", ENSEMBLE, str(tmp_path)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            cwd=tmp_path.parent,
+        )
+        assert done.returncode == 0, done.stderr
+        import json
+
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    cold = run()
+    assert cold["counts"]["loaded"] == 0 and cold["counts"]["stored"] == 4  # 2 programs x 2 devices
+    warm = run()
+    assert warm["counts"]["loaded"] == 4 and warm["counts"]["compiled"] == 0
+    assert warm["stats"] == cold["stats"]

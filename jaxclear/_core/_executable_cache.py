@@ -12,7 +12,9 @@ The key (SHA-256) covers:
 - jaxclear's own source (a hash of every ``.py`` file of the package: an edited checkout never
   loads a program built from older code);
 - the versions of Python, jax, jaxlib, diffrax, equinox, lineax and optimistix; the backend,
-  its devices and the host CPU's feature flags; ``XLA_FLAGS``; the x64 setting.
+  its devices and the host CPU's feature flags; ``XLA_FLAGS``; the x64 setting;
+- the devices the call runs on (``_execution_devices``: the ensemble engine's shares of a chunk,
+  each on its own device, are one program per device).
 
 JAX's persistent cache may share the folder (``jaxclear run`` sets it so), but never holds the
 store's programs: an executable JAX hands back from its cache cannot be serialized again (its
@@ -38,6 +40,7 @@ import pickle
 import platform
 import sys
 import tempfile
+import threading
 import weakref
 from collections.abc import Callable
 from pathlib import Path
@@ -192,9 +195,32 @@ class _KeyPickler(pickle.Pickler):
 
 
 def _key_bytes(call) -> bytes:
+    """The call pickled by value alone. Pickle's memo writes an object met before as a
+    back-reference, so two equal calls whose equal strings are or are not one object pickle
+    differently: a process that had traced the chunk's solve keyed its statistics program apart
+    from one that had loaded it ('driver' shared in one, a copy in the other), and a warm run
+    compiled again. Without the memo (``fast``) every object is written out in full."""
     buffer = io.BytesIO()
-    _KeyPickler(buffer, protocol=5).dump(call)
+    pickler = _KeyPickler(buffer, protocol=5)
+    pickler.fast = True  # no memo: equal values give equal bytes (a cycle raises: not storable)
+    pickler.dump(call)
     return buffer.getvalue()
+
+
+def _execution_devices(leaves) -> list:
+    """The devices the call runs on: those its committed arrays sit on, else the default device.
+    A program compiled for one device cannot run on another (the ensemble engine places each
+    share of a chunk on its own device), and a loaded program must be told its devices
+    (``deserialize_and_load`` assumes all of the backend's: "Expected args ... to have 2
+    shards" in a process with two CPU devices)."""
+    devices = {
+        d.id: d for x in leaves if isinstance(x, jax.Array) and x.committed for d in x.devices()
+    }
+    if not devices:
+        default = jax.config.jax_default_device  # pyright: ignore[reportAttributeAccessIssue]
+        device = default if isinstance(default, jax.Device) else jax.devices()[0]
+        devices = {device.id: device}
+    return [devices[i] for i in sorted(devices)]
 
 
 class _Slot:
@@ -217,23 +243,57 @@ def _describe(x) -> _Aval:
     return _Aval(tuple(x.shape), str(x.dtype), bool(getattr(x, "weak_type", False)))
 
 
-@contextlib.contextmanager
-def _jax_cache_hits():
-    """Within: JAX's persistent cache writes nothing; yields a list that records its hits."""
-    hits = []
+class _Building:
+    """The process-wide settings a program is built for the store under, shared by the threads
+    that build at once (the ensemble engine builds each device's share from its own thread):
+    equinox's checks traced in NaN mode, JAX's persistent cache writing nothing, and a listener
+    recording its hits. The first thread in sets them, the last one out restores them (a
+    per-thread save and restore would leave them set for good when the builds overlap). A hit
+    recorded while several build counts for all of them: such a build is used, not stored."""
 
-    def listener(event, **kwargs):
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._mode: Any = None  # the error-mode context entered by the first thread in
+        self._saved: Any = None  # JAX's persistent-cache threshold before it
+        self.hits: list[str] = []
+
+    def _listener(self, event, **kwargs):
         if event == "/jax/compilation_cache/cache_hits":
-            hits.append(event)
+            self.hits.append(event)
 
-    saved = jax.config.jax_persistent_cache_min_compile_time_secs  # pyright: ignore[reportAttributeAccessIssue]
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", float("inf"))
-    jax.monitoring.register_event_listener(listener)
-    try:
-        yield hits
-    finally:
-        jax.monitoring.unregister_event_listener(listener)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", saved)
+    def _enter(self) -> int:
+        with self._lock:
+            if self._depth == 0:
+                self.hits = []
+                self._mode = error_mode_set("nan")
+                self._mode.__enter__()
+                self._saved = jax.config.jax_persistent_cache_min_compile_time_secs  # pyright: ignore[reportAttributeAccessIssue]
+                jax.config.update("jax_persistent_cache_min_compile_time_secs", float("inf"))
+                jax.monitoring.register_event_listener(self._listener)
+            self._depth += 1
+            return len(self.hits)
+
+    def _exit(self) -> None:
+        with self._lock:
+            self._depth -= 1
+            if self._depth == 0:
+                jax.monitoring.unregister_event_listener(self._listener)
+                jax.config.update("jax_persistent_cache_min_compile_time_secs", self._saved)
+                self._mode.__exit__(None, None, None)
+
+    @contextlib.contextmanager
+    def __call__(self):
+        """Within: build for the store; yields a function telling whether JAX's cache served a
+        program since entering."""
+        before = self._enter()
+        try:
+            yield lambda: len(self.hits) > before
+        finally:
+            self._exit()
+
+
+_building = _Building()
 
 
 class _Entry(NamedTuple):
@@ -265,10 +325,14 @@ class StoredJit:
         except Exception:  # code outside the key, or cannot be pickled: compile as usual
             _counts["not_storable"] += 1
             return self._jitted(*args)
-        key = hashlib.sha256(_environment() + self._fun.__qualname__.encode() + call).hexdigest()
+        devices = _execution_devices(leaves)
+        placement = ("devices=" + ",".join(str(d.id) for d in devices)).encode()
+        key = hashlib.sha256(
+            _environment() + self._fun.__qualname__.encode() + call + placement
+        ).hexdigest()
         entry = self._loaded.get(key)
         if entry is None:
-            entry = self._load(folder, key)
+            entry = self._load(folder, key, devices)
             if entry is not None:
                 try:  # wait for the first run: a program that cannot run here fails in it
                     out = jax.block_until_ready(entry.compiled(leaves))
@@ -292,7 +356,7 @@ class StoredJit:
     def _path(self, folder: Path, key: str) -> Path:
         return folder / f"{self._fun.__name__.strip('_')}-{key[:40]}.jaxclear"
 
-    def _load(self, folder: Path, key: str) -> "_Entry | None":
+    def _load(self, folder: Path, key: str, devices: list) -> "_Entry | None":
         from jax.experimental import serialize_executable
 
         path = self._path(folder, key)
@@ -301,7 +365,9 @@ class StoredJit:
         _initialize_lapack()
         try:
             payload, in_tree, out_tree, skeleton = pickle.loads(path.read_bytes())
-            compiled = serialize_executable.deserialize_and_load(payload, in_tree, out_tree)
+            compiled = serialize_executable.deserialize_and_load(
+                payload, in_tree, out_tree, execution_devices=devices
+            )
         except Exception:  # unreadable or from an incompatible build: compile it again
             return None
         with contextlib.suppress(OSError):
@@ -327,12 +393,12 @@ class StoredJit:
         # programs have names of their own (their own keys in JAX's cache), JAX does not write
         # them to its cache, and a program JAX still served from its cache is not stored.
         flat.__name__ = f"{self._fun.__name__.strip('_')}_stored_{key[:16]}"
-        with error_mode_set("nan"):
+        with _building() as served_from_cache:
             lowered = jax.jit(flat).lower(leaves)
-        with _jax_cache_hits() as hits:
             compiled = lowered.compile()
+            hit = served_from_cache()
         _counts["compiled"] += 1
-        if hits:
+        if hit:
             _counts["not_storable"] += 1
             return _Entry(compiled, skeletons[0])
         entry = _Entry(compiled, skeletons[0])
