@@ -15,6 +15,7 @@ import warnings
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 from cases import one_joint_b
@@ -153,3 +154,21 @@ def test_shares_that_cannot_run_at_once_say_so():
         warnings.simplefilter("error")  # no warning when the shares run at once
         at_once = map_members(_doubled, (), rows, settings=settings, batched=True, concurrent=True)
     np.testing.assert_array_equal(at_once, serial)
+
+
+def _counted(rows, count):
+    return rows * 2.0, jnp.full(rows.shape[0], count)
+
+
+def test_partial_chunk_splits_evenly_over_devices():
+    """A last, partial chunk's members are split evenly over the devices (each device's share
+    padded to its shape), so that no device waits on another with more members: 10 rows in
+    chunks of 8 on two devices give shares of 4 and 4, then 1 and 1 (not 2 and 0)."""
+    device = jax.local_devices()[0]
+    settings = EnsembleSettings(chunk_size=8, devices=[device, device], progress=False)
+    rows = np.arange(10.0)[:, None]
+    doubled, counts = map_members(
+        _counted, (), rows, settings=settings, batched=True, concurrent=True
+    )
+    np.testing.assert_array_equal(doubled, 2.0 * rows)
+    np.testing.assert_array_equal(counts, [4] * 8 + [1, 1])

@@ -81,12 +81,22 @@ IDEAL_RTOL = 5e-3
 are missed by at most 1 − cos 3° ≈ 0.14 %; the references are given to 4–5 digits."""
 
 
+def test_statistic_names_without_a_solve(runs):
+    """``statistic_names`` gives the names ``statistics`` gives a run, without solving: here a
+    clearance joint's; the ideal mechanism's in the next test."""
+    traj = runs[GRIDS[0]]
+    names = jaxclear.analysis.statistic_names(traj.mechanism)
+    assert names == sorted(jaxclear.analysis.statistics(traj))
+    assert "B_peak_normal_force" in names and "crank_torque_rms" in names
+
+
 def test_ideal_extremes_match_the_reference():
     traj = jaxclear.simulate(
         slider_crank(rpm=RPM, gravity=False), PERIOD, num_points=GRIDS[0], solver="fast"
     )
     stats = jaxclear.analysis.statistics(traj)
     print({k: float(v) for k, v in stats.items()})
+    assert sorted(stats) == jaxclear.analysis.statistic_names(traj.mechanism)
     assert float(stats["crank_torque_max"]) == pytest.approx(IDEAL_TORQUE_EXTREME, rel=IDEAL_RTOL)
     assert float(stats["crank_torque_min"]) == pytest.approx(-IDEAL_TORQUE_EXTREME, rel=IDEAL_RTOL)
     assert float(stats["peak_slider_acceleration"]) == pytest.approx(

@@ -26,4 +26,5 @@ from ._signals import signals as signals
 from ._spectrum import WINDOWS as WINDOWS
 from ._spectrum import amplitude_spectrum as amplitude_spectrum
 from ._spectrum import signal_spectrum as signal_spectrum
+from ._statistics import statistic_names as statistic_names
 from ._statistics import statistics as statistics

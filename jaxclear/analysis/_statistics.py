@@ -4,8 +4,14 @@ These names are what ``jaxclear run`` writes under ``statistics`` in run.json an
 report per member, so they are defined once, here.
 """
 
+import types
+
+import equinox as eqx
 import jax.numpy as jnp
 from jaxtyping import Array, Float
+
+from ..solve._extremes import Tracker
+from ..solve._observables import observe
 
 
 def statistics(traj) -> dict[str, Float[Array, "..."]]:
@@ -55,3 +61,26 @@ def statistics(traj) -> dict[str, Float[Array, "..."]]:
     out["statistics_start"] = x.start
     out["statistics_duration"] = x.duration
     return {k: jnp.asarray(v) for k, v in out.items()}
+
+
+def statistic_names(mechanism) -> list[str]:
+    """The names ``statistics`` gives a run of ``mechanism``, sorted, without solving it.
+
+    Traces one evaluation of what the solver observes at a step (no solve, nothing compiled), and
+    names the extremes that observation would start, as ``statistics`` does. An ensemble uses it
+    to lay out its table before its first member is solved.
+
+    Args:
+        mechanism: a ``Mechanism``.
+
+    Returns:
+        The names, sorted (the order of a ``statistics`` dict after ``jax.jit``, whose outputs
+        come back with sorted keys).
+    """
+
+    def names(m):
+        obs = observe(0.0, jnp.zeros(m.state_size), m)
+        extremes = Tracker.first(0.0, 0.0, obs).extremes()
+        return statistics(types.SimpleNamespace(extremes=extremes, mechanism=m))
+
+    return sorted(eqx.filter_eval_shape(names, mechanism))

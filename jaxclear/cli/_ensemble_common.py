@@ -23,7 +23,6 @@ import jaxclear
 
 from ..analysis import DEFAULT_CONTINUOUS_FRACTION
 from ..internal import (
-    DEFAULT_CHUNK,
     DEFAULT_LANES,
     ENGINES,
     MANIFEST,
@@ -31,7 +30,7 @@ from ..internal import (
     read_table,
 )
 from ..io import package_versions, write_json
-from ..studies import EnsembleError, EnsembleSettings
+from ..studies import DEFAULT_CHUNKS, EnsembleError, EnsembleSettings
 from ._common import (
     NOT_APPLIED,
     PROG,
@@ -62,9 +61,10 @@ ENSEMBLE_FLAGS = (
 """Options every ensemble command adds (for 'did you mean' hints)."""
 
 
-def _chunk_size(requested: int, members: int, devices: int) -> int:
-    """Members per chunk: at most ``requested`` and the members there are, a multiple of the
-    number of devices (each takes an equal share)."""
+def _chunk_size(requested: "int | None", members: int, devices: int, engine: str) -> int:
+    """Members per chunk: at most ``requested`` (default: the engine's, ``DEFAULT_CHUNKS``) and
+    the members there are, a multiple of the number of devices (each takes an equal share)."""
+    requested = DEFAULT_CHUNKS[engine] if requested is None else requested
     return -(-min(requested, members) // devices) * devices
 
 
@@ -86,9 +86,10 @@ def add_ensemble_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--chunk-size",
         type=int,
-        default=DEFAULT_CHUNK,
+        default=None,
         metavar="K",
-        help=f"members per vectorised solve (default {DEFAULT_CHUNK}, or the number of members if "
+        help=f"members per vectorised solve (default {DEFAULT_CHUNKS['refill']} with the refill "
+        f"engine, {DEFAULT_CHUNKS['lockstep']} with lockstep, or the number of members if "
         "smaller), rounded up to a multiple of the devices; memory grows with it",
     )
     parser.add_argument(
@@ -217,7 +218,7 @@ def prepare(args: argparse.Namespace, command: str) -> Prepared:
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
-    if args.chunk_size < 1:
+    if args.chunk_size is not None and args.chunk_size < 1:
         raise UsageError(f"--chunk-size {args.chunk_size}: give 1 or more members per chunk")
     if args.lanes is not None and args.lanes < 1:
         raise UsageError(f"--lanes {args.lanes}: give 1 or more lanes (members at once)")
@@ -332,7 +333,7 @@ def run_engine(
     out_dir = prepare_output(settings)  # all input checked: make the folder, prove it writable
     devices = local_devices(args.devices)
     per = len(devices)
-    chunk = _chunk_size(args.chunk_size, members, per)
+    chunk = _chunk_size(args.chunk_size, members, per, args.engine or EnsembleSettings().engine)
     previous = _previous(out_dir, table_name)
     if args.devices is not None and per < args.devices:
         say(
@@ -585,10 +586,9 @@ def replay(
         steps = [int(by_index[i].get("num_steps") or 0) for i in range(n)]
     devices = local_devices(args.devices)
     per = len(devices)
-    chunk = _chunk_size(args.chunk_size, n, per)
-    engine = EnsembleSettings(
-        chunk_size=chunk, devices=devices, progress=False, **_recorded_engine(args, out_dir, kind)
-    )
+    recorded = _recorded_engine(args, out_dir, kind)
+    chunk = _chunk_size(args.chunk_size, n, per, recorded.get("engine", EnsembleSettings().engine))
+    engine = EnsembleSettings(chunk_size=chunk, devices=devices, progress=False, **recorded)
     target = member_folder(out_dir, member)
     staged = StagedOutput(target, f"--out {str(out_dir)!r}: member folder")
     try:

@@ -10,7 +10,9 @@ from ._distributions import LogNormal as LogNormal
 from ._distributions import Normal as Normal
 from ._distributions import Uniform as Uniform
 from ._distributions import distribution_from_spec as distribution_from_spec
+from ._engine import DEFAULT_CHUNKS as DEFAULT_CHUNKS
 from ._engine import EnsembleSettings as EnsembleSettings
+from ._engine import chunk_size_of as chunk_size_of
 from ._engine import map_members as map_members
 from ._ensemble import MemberReplay as MemberReplay
 from ._ensemble import replay_member as replay_member

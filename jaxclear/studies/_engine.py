@@ -7,7 +7,8 @@ it runs is set by one ``EnsembleSettings``:
 
 - members are solved ``chunk_size`` at a time by one compiled, vmapped call (one compilation per
   chunk size, function and static arguments); a last, partial chunk is padded by repeating its
-  last row, so that every chunk has one shape; memory grows with the chunk;
+  last row (on several devices: split evenly, each share padded), so that every chunk has one
+  shape; memory grows with the chunk;
 - with several local devices (``jax.local_devices()``: GPUs, or CPU cores exposed by
   ``XLA_FLAGS=--xla_force_host_platform_device_count=N``) each chunk is split over the devices:
   every device solves its own share as its own computation, launched from its own thread;
@@ -43,7 +44,14 @@ from ..solve._solver import IMPLICIT, SolverConfig
 from ..solve._startup import ideal_mechanism
 
 DEFAULT_CHUNK = 64
-"""Members per vectorised solve: measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
+"""Members per vectorised solve of the ``"lockstep"`` engine (and of ``map_members``' other
+users): measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
+DEFAULT_CHUNKS = {"lockstep": DEFAULT_CHUNK, "refill": 256}
+"""Members per chunk by engine, where ``EnsembleSettings.chunk_size`` is not given. Refilled lanes
+idle only at a chunk's end, so larger chunks waste less: a 1000-member case-a Monte Carlo on two
+CPU devices, compiled programs loaded from the store, took 31.9 s in chunks of 64, 30.6 s in
+chunks of 128 and 29.7 s in chunks of 256 (/tmp/s18/prof.py, 2026-11-28). Lockstep chunks wait
+on their slowest member, and 64 was its best size."""
 ORDERS = ("cost", "index")
 """Member orders of ``EnsembleSettings.order``."""
 ENGINES = ("lockstep", "refill")
@@ -108,7 +116,8 @@ class EnsembleSettings(eqx.Module):
 
     Attributes:
         chunk_size: members per vectorised solve (one compilation per chunk size), rounded up to
-            a multiple of the devices; memory grows with it. ``run_ensemble`` pads a last, partial
+            a multiple of the devices; memory grows with it. ``None`` (default): the engine's
+            (``DEFAULT_CHUNKS``: 256 refilled, 64 lockstep; ``chunk_size_of``). ``run_ensemble`` pads a last, partial
             chunk; ``bifurcation_points`` and ``lyapunov_sweep`` lower it to their number of
             values.
         devices: the devices to split each chunk over (a sequence of JAX devices, e.g.
@@ -137,7 +146,7 @@ class EnsembleSettings(eqx.Module):
         EnsembleError: a field out of its range, naming the field and what is allowed.
     """
 
-    chunk_size: int = eqx.field(static=True, default=DEFAULT_CHUNK, converter=_whole)
+    chunk_size: int | None = eqx.field(static=True, default=None, converter=_whole)
     devices: tuple | None = eqx.field(static=True, default=None, converter=_device_tuple)
     order: str = eqx.field(static=True, default="cost")
     out: Path | None = eqx.field(static=True, default=None, converter=_folder)
@@ -148,10 +157,10 @@ class EnsembleSettings(eqx.Module):
 
     def __check_init__(self):
         size = self.chunk_size
-        if not isinstance(size, int) or isinstance(size, bool) or size < 1:
+        if size is not None and (not isinstance(size, int) or isinstance(size, bool) or size < 1):
             raise EnsembleError(
-                f"chunk_size must be a positive integer (members per vectorised solve), got "
-                f"{size!r}."
+                f"chunk_size must be a positive integer (members per vectorised solve), or None "
+                f"for the engine's default; got {size!r}."
             )
         if self.devices is not None:
             if not self.devices:
@@ -195,6 +204,14 @@ def _split_devices(devices: Sequence[Any] | None) -> list | None:
     return devices if len(devices) > 1 else None
 
 
+def chunk_size_of(settings: EnsembleSettings, engine: str | None = None) -> int:
+    """``settings.chunk_size``, or where it is ``None`` the default of ``engine`` (default
+    ``settings.engine``; ``DEFAULT_CHUNKS``)."""
+    if settings.chunk_size is not None:
+        return settings.chunk_size
+    return DEFAULT_CHUNKS[engine or settings.engine]
+
+
 def chunk_size_for(chunk_size: int, devices) -> int:
     """``chunk_size`` rounded up to a multiple of the number of devices."""
     per = len(devices) if devices else 1
@@ -204,7 +221,7 @@ def chunk_size_for(chunk_size: int, devices) -> int:
 def chunk_rows(settings: EnsembleSettings) -> int:
     """Rows per vectorised call under ``settings``: its ``chunk_size`` rounded up to a multiple of
     the devices it splits a chunk over."""
-    return chunk_size_for(settings.chunk_size, _split_devices(settings.devices))
+    return chunk_size_for(chunk_size_of(settings), _split_devices(settings.devices))
 
 
 def swept_values(mechanism: Mechanism, name: str, values) -> np.ndarray:
@@ -265,7 +282,8 @@ def map_members(
     """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
 
     The engine's core, shared by ``run_ensemble``, the sweeps and identification's global scan:
-    chunks of ``settings.chunk_size`` rows (the last one padded by repeating its last row, so that
+    chunks of ``settings.chunk_size`` rows (the last one padded by repeating its last row, or
+    split evenly over the devices and each share padded so, so that
     every chunk has one shape and one compilation), each one vmapped and split over the devices.
 
     Args:
@@ -293,7 +311,7 @@ def map_members(
     """
     values = np.asarray(values, dtype=float)
     devs = _split_devices(settings.devices)
-    chunk = chunk_size_for(settings.chunk_size, devs)
+    chunk = chunk_size_for(chunk_size_of(settings, "refill" if batched else "lockstep"), devs)
     per = chunk // len(devs) if devs else chunk
     if batched and not concurrent and devs is not None and len(devs) > 1:
         warnings.warn(
@@ -308,36 +326,48 @@ def map_members(
     pending = collections.deque()
 
     def collect():
-        start, count, parts = pending.popleft()
+        start, counts, parts = pending.popleft()
         got = [jax.device_get(p) for p in parts]
-        out = jax.tree_util.tree_map(lambda *xs: np.concatenate([np.asarray(x) for x in xs]), *got)
-        outputs.append(jax.tree_util.tree_map(lambda x: x[:count], out))
+        got = [
+            jax.tree_util.tree_map(lambda x, c=c: np.asarray(x)[:c], g) for g, c in zip(got, counts)
+        ]
+        outputs.append(jax.tree_util.tree_map(lambda *xs: np.concatenate(xs), *got))
         if on_chunk is not None:
-            on_chunk(start, start + count)
+            on_chunk(start, start + sum(counts))
+
+    def padded(rows, size):  # rows filled up to size by repeating the last one
+        return np.concatenate([rows, np.repeat(rows[-1:], size - len(rows), axis=0)])
 
     for start in range(0, len(values), chunk):
         part = values[start : start + chunk]
-        padded = np.concatenate([part, np.repeat(part[-1:], chunk - len(part), axis=0)])
-
-        def count(k, part=part):  # members in share k (rows past them pad the chunk)
-            return jnp.asarray(min(max(len(part) - k * per, 0), per), dtype=jnp.int32)
-
         if devs is None:
+            counts = [len(part)]
             if batched:
-                parts = [fn(jnp.asarray(padded), count(0), *args)]
+                count = jnp.asarray(len(part), dtype=jnp.int32)
+                parts = [fn(jnp.asarray(padded(part, chunk)), count, *args)]
             else:
-                parts = [_vmap_chunk(fn, args, jnp.asarray(padded))]
+                parts = [_vmap_chunk(fn, args, jnp.asarray(padded(part, chunk)))]
         else:
             # each device solves its own share as an independent computation, launched from its
             # own thread (JAX releases the GIL while XLA runs): the devices run at once. (A
             # shard_map over the devices hung for good in some configurations: 12 members
-            # drawing rod_mass with the ideal-joint deviation on two CPU devices.)
-            shares = [padded[k * per : (k + 1) * per] for k in range(len(devs))]
+            # drawing rod_mass with the ideal-joint deviation on two CPU devices.) A partial
+            # chunk's members are split evenly (232 members on two devices: 116 each, not 128
+            # and 104), each share padded to its shape: a device with fewer members would wait.
+            counts = [
+                len(part) // len(devs) + (k < len(part) % len(devs)) for k in range(len(devs))
+            ]
+            edges = np.concatenate([[0], np.cumsum(counts)])
+            shares = [
+                padded(part[edges[k] : edges[k + 1]] if counts[k] else part[-1:], per)
+                for k in range(len(devs))
+            ]
 
-            def run(k, shares=shares):
+            def run(k, shares=shares, counts=counts):
                 rows = jax.device_put(shares[k], devs[k])
                 if batched:
-                    out = fn(rows, jax.device_put(count(k), devs[k]), *args)
+                    count = jnp.asarray(counts[k], dtype=jnp.int32)
+                    out = fn(rows, jax.device_put(count, devs[k]), *args)
                 else:
                     out = _vmap_chunk(fn, args, rows)
                 return jax.block_until_ready(out)
@@ -351,7 +381,7 @@ def map_members(
             else:
                 with ThreadPoolExecutor(len(devs)) as pool:
                     parts = list(pool.map(run, range(len(devs))))
-        pending.append((start, len(part), parts))
+        pending.append((start, counts, parts))
         if len(pending) > 1:
             collect()
     while pending:

@@ -30,12 +30,12 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import diffrax
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .._core._errors import EnsembleError, InputCheck
+from .._core._executable_cache import stored_jit
 from .._core._progress import progress_bar
 from ..analysis._modes import (
     CONTINUOUS,
@@ -50,13 +50,20 @@ from ..analysis._modes import (
     shares_of_contacts,
 )
 from ..analysis._signals import signal_names, signals
-from ..analysis._statistics import statistics
+from ..analysis._statistics import statistic_names, statistics
 from ..model import Mechanism, get_parameter, parameter_info, with_parameters
 from ..solve._lanes import _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
 from ..solve._startup import ideal_mechanism
-from ._engine import EnsembleSettings, chunk_rows, concurrent_refill, cost_order, map_members
+from ._engine import (
+    EnsembleSettings,
+    chunk_rows,
+    chunk_size_of,
+    concurrent_refill,
+    cost_order,
+    map_members,
+)
 from ._ensemble_result import FAILED, OK, EnsembleResult, mechanism_values, resume, save
 
 NON_NEGATIVE = frozenset({"friction_coefficient", "viscous_friction", "damping", "free_length"})
@@ -170,7 +177,7 @@ def _summary(mechanism, deviation, traj, ideal, ts, start, keep=False):
 # --- a chunk on refilled lanes ----------------------------------------------------------------------
 
 
-@eqx.filter_jit
+@stored_jit
 def _refill_solve(values, count, arguments, ends, starts, lanes, ideal=False):
     """The first ``count`` rows of ``values`` solved on ``lanes`` refilled lanes as ``_member``
     solves one (``solve_members`` with the output grid ``ts``), or with ``ideal`` their ideal
@@ -189,7 +196,7 @@ def _refill_solve(values, count, arguments, ends, starts, lanes, ideal=False):
     return members_solution(program, values, t0, ends, starts, None, lanes, ts, count)
 
 
-@eqx.filter_jit
+@stored_jit
 def _refill_summaries(members, ideal, mechanism, deviation, ts, start):
     """``_summary`` of every member of ``_refill_solve``'s solutions (vmapped)."""
     trajectories = batched_trajectories(members)
@@ -214,7 +221,7 @@ def _refilled_chunk(values, count, arguments, lanes, keep=False):
     ideal = None
     if deviation:
         starts = np.full(n, float(t0))
-        ideal = _refill_solve(values, count, arguments, ends, starts, lanes, ideal=True)
+        ideal = _refill_solve(values, count, arguments, ends, starts, lanes, True)
     out = _refill_summaries(members, ideal, mechanism, deviation, ts, start)
     if keep:
         return (*out, members.trajectories())
@@ -288,6 +295,7 @@ class _Plan:
     period: float | None
     fraction: float
     statistic_names: list[str]
+    summary_names: tuple[str, ...]  # those of _summary (the rest are the contact modes')
 
     def arguments(self, mechanism: Mechanism) -> tuple:
         """The member function's arguments after its row (``_member_of_row``)."""
@@ -392,20 +400,12 @@ def _plan(
         )
     events = int(events)
 
-    # statistic names, from an abstract evaluation of one member
-    shape_stats, _, _ = eqx.filter_eval_shape(
-        _member,
-        mechanism,
-        names,
-        config,
-        solver_config("fast"),
-        deviation,
-        events,
-        jnp.asarray(vals[0]),
-        jnp.asarray(ts),
-        jnp.asarray(t0),
-        jnp.asarray(t1),
-        jnp.asarray(start),
+    # the statistic names _summary gives (sorted, as a dict out of a jit comes back), without
+    # tracing a member's solve (which cost 2-4 s before every run)
+    shape_stats = sorted(
+        statistic_names(mechanism)
+        + (["torque_fluctuation"] if mechanism.driver is not None else [])
+        + [f"{name}_deviation" for name in deviation]
     )
     joints = contact_joints(mechanism)
     return _Plan(
@@ -421,14 +421,15 @@ def _plan(
         start=start,
         period=period,
         fraction=float(fraction),
-        statistic_names=list(shape_stats) + mode_statistic_names(joints),
+        statistic_names=shape_stats + mode_statistic_names(joints),
+        summary_names=tuple(shape_stats),
     )
 
 
 def _chunk_settings(settings: EnsembleSettings, left: int) -> EnsembleSettings:
     """``settings`` for ``left`` members to solve: never pad a chunk beyond them (a small run, or
     a resumed one)."""
-    if 0 < left < settings.chunk_size:
+    if 0 < left < chunk_size_of(settings):
         return dataclasses.replace(settings, chunk_size=left)
     return settings
 
@@ -544,6 +545,9 @@ def run_ensemble(
             members, todo = _next_chunk(settings, vals, todo, finished, result.num_steps, chunk)
             started = time.perf_counter()
             stats, pen, outcome = plan.solve(members, chunk, settings)
+            missing = set(stats).symmetric_difference(plan.summary_names)
+            if missing:  # statistic_names and _summary disagree: a bug, never a user's error
+                raise AssertionError(f"statistic names out of step with the summary: {missing}")
             wall = (time.perf_counter() - started) / len(members)
             for row, i in enumerate(members):
                 plan.record(result, i, row, stats, pen, outcome)

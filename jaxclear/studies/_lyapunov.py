@@ -30,7 +30,7 @@ from ..dynamics._constraints import constraint_velocity, constraints
 from ..model import Mechanism, with_parameters
 from ..solve._simulate import assemble, initial_state, simulate
 from ..solve._solver import SolverConfig, recommended_solver, solver_config
-from ._engine import EnsembleSettings, map_members, swept_values
+from ._engine import EnsembleSettings, chunk_size_of, map_members, swept_values
 
 METHODS = ("tangent", "two_trajectory")
 
@@ -597,7 +597,9 @@ def lyapunov_sweep(
             bool(project),
         ),
         values[:, None],
-        settings=dataclasses.replace(settings, chunk_size=min(settings.chunk_size, values.size)),
+        settings=dataclasses.replace(
+            settings, chunk_size=min(chunk_size_of(settings, "lockstep"), values.size)
+        ),
     )
     return LyapunovSweep(
         parameter=name,

@@ -25,7 +25,13 @@ from ..model import Mechanism, with_parameters
 from ..solve._lanes import _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, solver_config
-from ._engine import EnsembleSettings, concurrent_refill, map_members, swept_values
+from ._engine import (
+    EnsembleSettings,
+    chunk_size_of,
+    concurrent_refill,
+    map_members,
+    swept_values,
+)
 
 DEFAULT_SKIP_REVOLUTIONS = 1
 """Start-up revolutions left out of a section by default: the journals start centred with the
@@ -338,7 +344,7 @@ def bifurcation_points(
     crank_speed(mechanism)
     config = solver_config(solver, mechanism)
     args = (mechanism, name, revolutions, float(t0), skip, names, config, float(phase))
-    chunked = dataclasses.replace(settings, chunk_size=min(settings.chunk_size, values.size))
+    chunked = dataclasses.replace(settings, chunk_size=min(chunk_size_of(settings), values.size))
     if settings.engine == "refill":
         points, times, ok = map_members(
             _bifurcation_chunk,
