@@ -48,10 +48,11 @@ DEFAULT_CHUNK = 64
 users): measured by benchmarks/bench_ensemble.py (see docs/ensembles.md)."""
 DEFAULT_CHUNKS = {"lockstep": DEFAULT_CHUNK, "refill": 256}
 """Members per chunk by engine, where ``EnsembleSettings.chunk_size`` is not given. Refilled lanes
-idle only at a chunk's end, so larger chunks waste less: a 1000-member case-a Monte Carlo on two
-CPU devices, compiled programs loaded from the store, took 31.9 s in chunks of 64, 30.6 s in
-chunks of 128 and 29.7 s in chunks of 256 (/tmp/s18/prof.py, 2026-11-28). Lockstep chunks wait
-on their slowest member, and 64 was its best size."""
+idle only at a chunk's end, so larger chunks waste less. A 1000-member case-a Monte Carlo on two
+CPU devices (``JAX_COMPILATION_CACHE_DIR=DIR EQX_ON_ERROR=nan python benchmarks/bench_ensemble.py
+--case a --devices 2 --montecarlo 1000 --mc-chunk K``, run twice, 2026-11-28): chunks of 64,
+44.4 s with empty caches and 32.4 s with the programs loaded from the store; chunks of 256, 42.0
+and 29.7 s. Lockstep chunks wait on their slowest member, and 64 was its best size."""
 ORDERS = ("cost", "index")
 """Member orders of ``EnsembleSettings.order``."""
 ENGINES = ("lockstep", "refill")
