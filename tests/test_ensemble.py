@@ -160,14 +160,19 @@ class _Counter(list):
         self.append(int(finished.sum()))
 
 
+FULL_CHUNK = [0, 1, 2, 0]
+"""Rows of ``VALUES`` that fill one chunk with admissible members: a run of fewer members solves
+chunks of its size, one compilation more (~15 s)."""
+
+
 def test_changed_configuration_is_refused(mechanism, tmp_path):
-    values = {k: v[:2] for k, v in VALUES.items()}
+    values = {k: v[FULL_CHUNK] for k, v in VALUES.items()}
     settings = dataclasses.replace(SETTINGS, out=tmp_path)
     _run(mechanism, values, settings=settings, description={"seed": 1})
     with pytest.raises(EnsembleError, match=r"another configuration \(changed: description\.seed"):
         _run(mechanism, values, settings=settings, description={"seed": 2})
     manifest = json.loads((tmp_path / "ensemble.json").read_text())
-    assert manifest["finished"] == 2
+    assert manifest["finished"] == len(FULL_CHUNK)
 
 
 def test_bad_arguments_name_the_fix(mechanism):
@@ -224,6 +229,7 @@ SHARDED = textwrap.dedent(
                      contact_law=LankaraniNikravesh(restitution=0.9),
                      friction_law=ModifiedCoulomb(0.01), gravity=False)
     args = json.loads(sys.argv[1])
+    jaxclear.enable_compilation_cache(sys.argv[2])
     solver = jaxclear.SolverConfig(**args["solver"])
     values = {k: np.asarray(v) for k, v in args["values"].items()}
     settings = jaxclear.EnsembleSettings(chunk_size=args["chunk"], progress=False)
@@ -231,15 +237,20 @@ SHARDED = textwrap.dedent(
                               num_points=args["points"], solver=solver, settings=settings)
     print(json.dumps({"devices": len(jax.devices()),
                       "force": r.statistics["B_peak_normal_force"].tolist(),
-                      "steps": r.num_steps.tolist()}))
+                      "steps": r.num_steps.tolist(),
+                      "counts": jaxclear.compilation_cache_statistics()}))
     """
 )
 
 
-def test_chunks_spread_over_two_devices_give_the_same_members(ensemble):
+def test_chunks_spread_over_two_devices_give_the_same_members(ensemble, tmp_path):
     """XLA_FLAGS=--xla_force_host_platform_device_count=2: each chunk is split over two CPU
     devices (one per core here), each its own computation from its own thread; members come out as
-    in one device."""
+    in one device. With the store of compiled programs on, a second process loads every program
+    of the first (each device's share is compiled for its device, from its own thread) and gives
+    the same members. (Loaded programs had been told the backend's two devices and failed to run;
+    and a key had depended on which equal strings pickle memoised, so a process that traced keyed
+    the statistics program apart from one that loaded.)"""
     args = {
         "solver": {"method": "tsit5", "rtol": 1e-10, "atol": 1e-13, "max_steps": 8000},
         "values": {k: v[:3].tolist() for k, v in VALUES.items()},
@@ -249,16 +260,25 @@ def test_chunks_spread_over_two_devices_give_the_same_members(ensemble):
         "chunk": CHUNK,
     }
     env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
-    done = subprocess.run(
-        [sys.executable, "-c", SHARDED, json.dumps(args)],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=600,
-    )
-    assert done.returncode == 0, done.stderr[-2000:]
-    out = json.loads(done.stdout.strip().splitlines()[-1])
+
+    def run():
+        done = subprocess.run(
+            [sys.executable, "-c", SHARDED, json.dumps(args), str(tmp_path)],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=600,
+        )
+        assert done.returncode == 0, done.stderr[-2000:]
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    out = run()
     assert out["devices"] == 2
+    assert out["counts"]["loaded"] == 0 and out["counts"]["stored"] >= 4  # 2 devices
+    warm = run()
+    assert warm["counts"]["loaded"] == out["counts"]["stored"]
+    assert warm["counts"]["compiled"] == 0
+    assert (warm["force"], warm["steps"]) == (out["force"], out["steps"])
     np.testing.assert_allclose(
         out["force"], ensemble.statistics["B_peak_normal_force"][:3], rtol=SAME
     )
@@ -270,7 +290,7 @@ def test_modes_use_each_members_crank_period(mechanism):
     fraction chosen so that a contact of the 4000 rpm member is shorter than the fraction of its
     period but longer than that of the nominal 5000 rpm, the member counts it as an impact, as its
     single run does."""
-    values = {k: v[:CHUNK] for k, v in VALUES.items()}  # member 1: 4000 rpm
+    values = {k: v[FULL_CHUNK] for k, v in VALUES.items()}  # member 1: 4000 rpm
     member = jaxclear.with_parameters(mechanism, {k: v[1] for k, v in VALUES.items()})
     single = jaxclear.simulate(
         member, T1, num_points=POINTS, statistics_start=START, solver=TIGHT, contact_events=EVENTS
