@@ -18,9 +18,10 @@ figures (their ``--json`` files); their own output is shown as it comes:
 - ``lanes``: ``lane_refill.py`` pinned to ``--pin-cpu`` (``solve_members``' refilled lanes
   against lockstep chunks of ``map_members``, cases a and c, one core);
 - ``ensemble``: ``bench_ensemble.py`` (``run_ensemble`` against a serial loop, 1 and 2 devices);
-- ``montecarlo``: ``bench_ensemble.py --montecarlo N --devices 2`` twice on one empty JAX
-  compilation cache folder (``EQX_ON_ERROR=nan``, as ``jaxclear run`` sets it so that the solve
-  can be stored): cold, then warm.
+- ``montecarlo``: ``bench_ensemble.py --montecarlo N --devices 2`` twice on one empty folder,
+  JAX's compilation cache and jaxclear's store of compiled programs both in it (as ``jaxclear
+  montecarlo`` keeps them; ``EQX_ON_ERROR=nan``, as ``jaxclear run`` sets it so that the solve
+  can be stored): cold, then warm (the chunk's programs loaded, not traced or compiled).
 
 Then prints one table: every target of issue 25, the measured value, the target and met / NOT
 met, with the machine state (load average, CPUs, versions, git commit). ``--quick`` cuts members,
@@ -247,7 +248,8 @@ def _montecarlo_rows(table, runs):
             + ("" if mc is None else f" ({fig['2'].get('engine', 'lockstep')})")
             + ", 2 devices on 2 cores, compilation included"
             + ("" if mc is None else f", {mc['members']} members, {mc['failed']} failed")
-            + f"; JAX cache folder {entries} entries before",
+            + (f", chunks of {mc['chunk_size']}" if mc and "chunk_size" in mc else "")
+            + f"; cache folder (JAX's and jaxclear's store) {entries} entries before",
         )
 
 
