@@ -118,9 +118,9 @@ class EnsembleSettings(eqx.Module):
     Attributes:
         chunk_size: members per vectorised solve (one compilation per chunk size), rounded up to
             a multiple of the devices; memory grows with it. ``None`` (default): the engine's
-            (``DEFAULT_CHUNKS``: 256 refilled, 64 lockstep; ``chunk_size_of``). ``run_ensemble`` pads a last, partial
-            chunk; ``bifurcation_points`` and ``lyapunov_sweep`` lower it to their number of
-            values.
+            (``DEFAULT_CHUNKS``: 256 refilled, 64 lockstep; ``chunk_size_of``). ``run_ensemble``
+            pads a last, partial chunk; ``bifurcation_points`` and ``lyapunov_sweep`` lower it
+            to their number of values.
         devices: the devices to split each chunk over (a sequence of JAX devices, e.g.
             ``jax.local_devices()[:2]``); ``None``: all local devices.
         order: ``"cost"`` (members of similar expected cost in one chunk, see ``cost_order``)
