@@ -283,9 +283,10 @@ def map_members(
     """Evaluate ``fn(v, *args)`` for every row ``v`` of ``values`` in vectorised chunks.
 
     The engine's core, shared by ``run_ensemble``, the sweeps and identification's global scan:
-    chunks of ``settings.chunk_size`` rows (the last one padded by repeating its last row, or
-    split evenly over the devices and each share padded so, so that
-    every chunk has one shape and one compilation), each one vmapped and split over the devices.
+    chunks of ``chunk_size_of(settings)`` rows, each one vmapped and split over the devices. A
+    last, partial chunk is padded by repeating its last row (on several devices: its rows split
+    evenly, each device's share padded so), so that every chunk has one shape and one
+    compilation.
 
     Args:
         fn: a module-level function ``fn(v, *args)`` of one member's row ``v`` (a JAX function:

@@ -401,7 +401,7 @@ def _plan(
     events = int(events)
 
     # the statistic names _summary gives (sorted, as a dict out of a jit comes back), without
-    # tracing a member's solve (which cost 2-4 s before every run)
+    # tracing a member's solve and its ideal mechanism's (seconds before every run)
     shape_stats = sorted(
         statistic_names(mechanism)
         + (["torque_fluctuation"] if mechanism.driver is not None else [])
