@@ -12,6 +12,7 @@ global stage's numerical parts are checked on synthetic responses (no solve). Th
 from 0.5 mm, c/4 and 4c; three unknowns at 1000 rpm) are ``slow`` tests.
 """
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -96,6 +97,22 @@ def test_quick_fit_recovers_clearance(quick_fit):
     # fitted signals are the model's: their residual is about the noise level
     residual = result.fitted["slider_x"] - result.measured["slider_x"]
     assert np.sqrt(np.mean(residual**2)) < 3 * result.noise["slider_x"]
+
+
+def test_scan_engines_give_the_same_losses(quick_data, quick_fit):
+    """The scan on refilled lanes (the default) and on lockstep chunks solve the same points to the
+    same losses: each lane steps its point as a lone solve does (measured: equal to 2e-16 over 24
+    points). Shares the quick fit's windows and Jacobian; compiles the lockstep scan chunk."""
+    path, _ = quick_data
+    mech = mechanism()
+    data = jaxclear.Measurements.from_csv(path, known=jaxclear.signal_names(mech))
+    lockstep = dataclasses.replace(QUICK, scan_engine="lockstep", max_iterations=1)
+    result = jaxclear.identify(mech, data, START, settings=lockstep)
+    refilled = quick_fit[0].scan
+    assert QUICK.scan_engine == "refill"
+    np.testing.assert_array_equal(result.scan["values"], refilled["values"])
+    assert np.all(np.isfinite(refilled["loss"])) and np.ptp(refilled["loss"]) > 0
+    np.testing.assert_allclose(result.scan["loss"], refilled["loss"], rtol=1e-9, atol=0)
 
 
 def quick_fit_argv(path, config, out, *extra):
@@ -237,6 +254,7 @@ def test_noise_level_bound():
         ("tolerance", float("nan"), "tolerance must be"),
         ("scan_rtol", 0.0, "scan_rtol must be"),
         ("scan_rtol", 1.5, "scan_rtol must be"),
+        ("scan_engine", "fast", "scan_engine must be 'refill'"),
     ],
 )
 def test_fit_settings_are_checked(field, value, match):

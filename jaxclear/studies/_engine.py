@@ -17,8 +17,9 @@ it runs is set by one ``EnsembleSettings``:
   the next chunk (``cost_order``, ``EnsembleSettings.order``);
 - ``run_ensemble`` may instead solve each chunk on refilled lanes (``EnsembleSettings.engine =
   "refill"``: ``jaxclear.solve.solve_members``, where a lane whose member is done takes the next
-  one of the chunk at once); ``map_members(..., batched=True)`` then hands each chunk (or each
-  device's share of it) to a function of all its rows.
+  one of the chunk at once), and so does identification's global scan (``FitSettings.scan_engine``);
+  ``map_members(..., batched=True)`` then hands each chunk (or each device's share of it) to a
+  function of all its rows.
 
 Nothing here reads or writes files.
 """

@@ -67,7 +67,18 @@ SCAN_ATOL_FACTOR = 1e-3
 """The scan's absolute tolerance is this fraction of ``scan_rtol`` (as ``recommended_solver``'s)."""
 
 SCAN_CHUNK = 8
-"""Members per vectorised scan solve (bounds memory; one compilation per chunk size)."""
+"""Members per vectorised scan solve of the ``"lockstep"`` scan engine (bounds memory; one
+compilation per chunk size)."""
+
+SCAN_REFILL_CHUNK = 64
+"""Members per chunk of the ``"refill"`` scan engine (solved on ``DEFAULT_LANES`` refilled lanes).
+The README's fit (5000 rpm, joint B, 136 scanned points in designs of 16, 30 and 90), scan timed
+in-process with a warm cache on 2026-11-28: 0.84–0.89 s with chunks of 32, 0.88–0.91 s with 64,
+1.48 s with 256 (each chunk's trajectories cost their padding), against 2.57–3.17 s for lockstep
+chunks of 8. A design of several parameters is larger (32 points at first for two)."""
+
+SCAN_ENGINES = ("refill", "lockstep")
+"""How the global scan solves its points (``FitSettings.scan_engine``)."""
 
 DEFAULT_MAX_ITERATIONS = 20
 """Levenberg–Marquardt iterations per window."""
@@ -142,6 +153,10 @@ class FitSettings(eqx.Module):
             refinement has converged (≥ 0).
         scan_rtol: relative tolerance of the global scan's solves (absolute tolerance 1e-3 of
             it; the fit's method and other settings); ``None``: the fit's own solver settings.
+        scan_engine: how the scan solves its points: ``"refill"`` (default; chunks of
+            ``SCAN_REFILL_CHUNK`` on refilled lanes, ``jaxclear.solve.solve_members``) or
+            ``"lockstep"`` (vmapped ``simulate`` in chunks of ``SCAN_CHUNK``, each waiting for its
+            slowest point). Both give the same losses to the scan's tolerance.
 
     Raises:
         ModelError: a field out of its range, naming the field and what is allowed.
@@ -156,6 +171,7 @@ class FitSettings(eqx.Module):
     max_iterations: int = eqx.field(static=True, default=DEFAULT_MAX_ITERATIONS, converter=_whole)
     tolerance: float = eqx.field(static=True, default=DEFAULT_TOLERANCE, converter=_number)
     scan_rtol: float | None = eqx.field(static=True, default=DEFAULT_SCAN_RTOL, converter=_number)
+    scan_engine: str = eqx.field(static=True, default="refill")
 
     def __check_init__(self):
         horizons = self.horizons
@@ -213,6 +229,11 @@ class FitSettings(eqx.Module):
             raise ModelError(
                 f"scan_rtol must be None (the fit's solver) or a relative tolerance in (0, 1) for "
                 f"the global scan's solves, e.g. 1e-6; got {rtol!r}."
+            )
+        if not isinstance(self.scan_engine, str) or self.scan_engine not in SCAN_ENGINES:
+            raise ModelError(
+                f"scan_engine must be 'refill' (refilled lanes, the default) or 'lockstep' (how the "
+                f"global scan solves its points), got {self.scan_engine!r}."
             )
 
     def scan_count(self, parameters: int) -> int:

@@ -21,8 +21,9 @@ first contacts of a first simulation at the initial values and of the data
 (``_global_search.first_window_end``), the next ones are twice as long each.
 
 Global scan (``_global_scan``, the method in ``_global_search``): before the refinement, a design
-over the bounds is scanned with a capped loss on the first window (one vectorised solve per chunk
-of ``SCAN_CHUNK``). A window on which the scanned points tie (``_separates``: before the first
+over the bounds is scanned with a capped loss on the first window (chunks of ``SCAN_REFILL_CHUNK``
+points on refilled lanes, ``_scan_chunk``; or with ``FitSettings.scan_engine = "lockstep"`` one
+vmapped solve per chunk of ``SCAN_CHUNK``). A window on which the scanned points tie (``_separates``: before the first
 contact a clearance changes nothing) is not used: the scan moves on to the next window, and if none
 tells the points apart the fit says so and is not a success. The design is then refined until its
 spacing resolves the basin width measured on its own responses, and the best points of distinct
@@ -62,11 +63,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._core._errors import DataError, ModelError
+from .._core._executable_cache import stored_jit
 from .._core._progress import Progress, progress_bar
 from ..analysis._modes import contact_joints, corner_pair_channels
 from ..analysis._signals import signal_names, signals
 from ..io._measurements import Measurements
 from ..model import Mechanism, get_parameter, with_parameters
+from ..solve._lanes import DEFAULT_LANES, _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
 from ..solve._solver import SolverConfig, gradient_solver, solver_config
 from ._engine import EnsembleSettings, chunk_rows, map_members
@@ -75,6 +78,7 @@ from ._fit_settings import (
     LOSS_GROWTH,
     SCAN_ATOL_FACTOR,
     SCAN_CHUNK,
+    SCAN_REFILL_CHUNK,
     TIED_SHARE,
     Estimate,
     FitSettings,
@@ -145,6 +149,54 @@ def _scan_member(u, mechanism, params, names, solver, t0, t1, ts, data, inv_sigm
     """Residuals of one scanned point: a member of the ensemble engine's ``map_members``."""
     return _residuals(
         mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask, "discrete-reverse"
+    )
+
+
+@stored_jit
+def _scan_solve(
+    us, count, ends, starts, mechanism, params, names, solver, t0, ts, data, inv_sigma, mask, lanes
+):
+    """Residuals (C, S·N) of the first ``count`` rows of ``us`` (C, p), solved on ``lanes``
+    refilled lanes (``jaxclear.solve.solve_members``) as ``_scan_member`` solves one; rows past
+    ``count`` pad the chunk and are not solved (their residuals are meaningless). ``ends``,
+    ``starts``: (C,) each member's end time and (unused) statistics start, s."""
+    values = jax.vmap(params.values)(us)
+    keys = tuple(values)
+    rows = jnp.stack([jnp.asarray(values[n], dtype=float) for n in keys], axis=1)
+    program = _Program(mechanism=mechanism, names=keys, config=solver, track=False, max_events=0)
+    solved = members_solution(program, rows, t0, ends, starts, None, lanes, ts, count)
+
+    def one(traj):
+        out = signals(traj, names)
+        model = jnp.stack([out[n] for n in names])
+        r = (model - data) * inv_sigma[:, None] * mask[None, :]
+        return jnp.where(traj.succeeded, r, jnp.inf).ravel()
+
+    return jax.vmap(one)(batched_trajectories(solved))
+
+
+def _scan_chunk(
+    us, count, mechanism, params, names, solver, t0, t1, ts, data, inv_sigma, mask, lanes
+):
+    """A chunk of scanned points on refilled lanes (``map_members(..., batched=True)``)."""
+    n = us.shape[0]
+    # per-member end and start times made here, as ``run_ensemble``'s refilled chunks do
+    ends, starts = np.full(n, float(t1)), np.full(n, float(t0))
+    return _scan_solve(
+        us,
+        count,
+        ends,
+        starts,
+        mechanism,
+        params,
+        names,
+        solver,
+        t0,
+        ts,
+        data,
+        inv_sigma,
+        mask,
+        lanes,
     )
 
 
@@ -414,7 +466,8 @@ def _global_scan(windows: _Windows, specs, settings: FitSettings, bar: Progress,
     if count <= 1:
         return _Scan([u0], 0, True, {})
     design = Design(specs, count)
-    chunks = EnsembleSettings(chunk_size=SCAN_CHUNK)
+    refill = settings.scan_engine == "refill"
+    chunks = EnsembleSettings(chunk_size=SCAN_REFILL_CHUNK if refill else SCAN_CHUNK)
     if settings.scan_rtol is not None:  # the scan ranks points: an ordinary tolerance will do
         mechanism, space, names, config = windows.static
         rtol = settings.scan_rtol
@@ -432,11 +485,12 @@ def _global_scan(windows: _Windows, specs, settings: FitSettings, bar: Progress,
             ]
         )
         r = map_members(
-            _scan_member,
-            windows.args(k),
+            _scan_chunk if refill else _scan_member,
+            (*windows.args(k), DEFAULT_LANES) if refill else windows.args(k),
             us,
             settings=chunks,
             on_chunk=lambda start, stop: _advance(bar, 1),
+            batched=refill,
         )
         return values, us, np.asarray(r)
 
@@ -850,7 +904,8 @@ def identify(
             callback(entry)
 
     p = len(specs)
-    chunk = chunk_rows(EnsembleSettings(chunk_size=SCAN_CHUNK))
+    refill = settings.scan_engine == "refill"
+    chunk = chunk_rows(EnsembleSettings(chunk_size=SCAN_REFILL_CHUNK if refill else SCAN_CHUNK))
     scan_steps = (
         math.ceil(settings.scan_count(p) / chunk) * len(windows.ends)
         + math.ceil(settings.scan_budget(p) / chunk)
