@@ -86,9 +86,11 @@ SENSITIVITY_ADJOINTS = ("auto", "forward", "reverse")
 
 REVERSE_SENSITIVITY_MAX = 16
 """Reverse mode (``jax.grad``) through the sensitivity solve integrates one tangent per perturbed
-scalar (a leaf of the mechanism, or the whole ``y0``, counts with its size): with more than this
-many it uses diffrax's discrete adjoint (``SolverConfig.reverse_adjoint``), whose error is not
-controlled (docs/differentiation.md, "Many parameters")."""
+scalar (a leaf of the mechanism, or the whole ``y0``, counts with its size), at most this many in
+one augmented solve: with more, the tangents are integrated in blocks of this size, one augmented
+solve after another (``jax.lax.map``; each block's solve takes its own steps), so the cost grows
+with p but the derivative stays error-controlled (docs/differentiation.md, "Many parameters").
+Forward mode (``jax.jvp``, ``jax.jacfwd``) shares one solve among its directions up to this many."""
 
 
 def _tracer_kinds(tree) -> set[type]:
@@ -405,7 +407,7 @@ def differentiable_simulate(
         return fn(*args)
 
     fn = jax.custom_vjp(primal)
-    layout = {"discrete": False}  # static facts the forward pass finds for the backward pass
+    layout = {}  # static facts the forward pass finds for the backward pass
     is_primal = lambda x: isinstance(x, CustomVJPPrimal)  # noqa: E731
 
     def fwd(dynamic, y0, *times):
@@ -426,44 +428,51 @@ def differentiable_simulate(
         dynamic, times = jax.tree_util.tree_unflatten(d_def, values), plain(times)
         if p == 0:
             return primal(dynamic, y0_value, *times), None
-        if p > REVERSE_SENSITIVITY_MAX:
-            # one tangent per perturbed scalar costs ∝ p: diffrax's discrete adjoint instead
-            discrete = lambda d, y: _simulate_core(  # noqa: E731
-                eqx.combine(d, static),
-                times[0],
-                times[1],
-                times[2],
-                y,
-                times[3],
-                config,
-                config.reverse_adjoint(),
-                progress,
-                track_extremes,
-                max_events,
-            )
-            traj, pullback = jax.vjp(discrete, dynamic, y0_value)
-            layout.update(discrete=True)
-            return traj, pullback
         units = _unit_directions(values + ([y0_value] if y0_flag else []), flags + [y0_flag], p)
-        directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
-        dy0 = units[-1] if y0_flag else None
-        traj, tangent = solve_with_tangents(dynamic, y0_value, directions, dy0, *times)
         layout.update(shapes=[v.shape for v in values], flags=flags, y0_flag=y0_flag, p=p)
-        return traj, _inexact_leaves(tangent)
+        if p <= REVERSE_SENSITIVITY_MAX:
+            directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
+            dy0 = units[-1] if y0_flag else None
+            traj, tangent = solve_with_tangents(dynamic, y0_value, directions, dy0, *times)
+            return traj, _inexact_leaves(tangent)
+        return _blocked_tangents(units, len(values), d_def, y0_flag, dynamic, y0_value, times)
+
+    def _blocked_tangents(units, n_values, d_def, y0_flag, dynamic, y0_value, times):
+        """More perturbed scalars than one augmented solve takes: their unit directions in blocks
+        of ``REVERSE_SENSITIVITY_MAX`` (the last padded with zero directions, whose tangents are
+        zero and whose weight in the error norm is atol), one augmented solve per block
+        (``jax.lax.map``: one compiled solve, run once per block). The trajectory returned is
+        the first block's; every block's tangents are those of its own solve."""
+        size = REVERSE_SENSITIVITY_MAX
+        p = layout["p"]
+        blocks = -(-p // size)
+
+        def blocked(u):
+            if u is None:
+                return None
+            padded = jnp.concatenate([u, jnp.zeros((blocks * size - p,) + u.shape[1:], u.dtype)])
+            return jnp.reshape(padded, (blocks, size) + u.shape[1:])
+
+        static_part = {}
+
+        def block(dirs):
+            directions = jax.tree_util.tree_unflatten(d_def, dirs[:n_values])
+            dy0 = dirs[-1] if y0_flag else None
+            traj, tangent = solve_with_tangents(dynamic, y0_value, directions, dy0, *times)
+            arrays, static_part["traj"] = eqx.partition(traj, eqx.is_array)
+            return arrays, _inexact_leaves(tangent)
+
+        arrays, tangents = jax.lax.map(block, [blocked(u) for u in units])
+        traj = eqx.combine(jax.tree_util.tree_map(lambda x: x[0], arrays), static_part["traj"])
+        tangents = [
+            None if t is None else jnp.reshape(t, (blocks * size,) + t.shape[2:])[:p]
+            for t in tangents
+        ]
+        return traj, tangents
 
     def bwd(residuals, cotangent):
         if residuals is None:
             return (None,) * len(args)
-        if layout["discrete"]:
-            filled = jax.tree_util.tree_map(
-                lambda x: (
-                    jnp.zeros(x.aval.shape, x.aval.dtype) if isinstance(x, SymbolicZero) else x
-                ),
-                cotangent,
-                is_leaf=lambda x: isinstance(x, SymbolicZero),
-            )
-            g_dynamic, g_y0 = residuals(filled)
-            return (g_dynamic, g_y0, None, None, None, None)
         tangents = residuals
         shapes, flags, y0_flag, p = (layout[k] for k in ("shapes", "flags", "y0_flag", "p"))
         cts = jax.tree_util.tree_leaves(cotangent, is_leaf=lambda x: isinstance(x, SymbolicZero))
