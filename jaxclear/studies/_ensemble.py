@@ -426,11 +426,14 @@ def _plan(
     )
 
 
-def _chunk_settings(settings: EnsembleSettings, left: int) -> EnsembleSettings:
-    """``settings`` for ``left`` members to solve: never pad a chunk beyond them (a small run, or
-    a resumed one)."""
-    if 0 < left < chunk_size_of(settings):
-        return dataclasses.replace(settings, chunk_size=left)
+def _chunk_settings(settings: EnsembleSettings, solvable: int) -> EnsembleSettings:
+    """``settings`` for a run of ``solvable`` members (those with admissible values): never pad a
+    chunk beyond them (a small run). A resumed run passes the whole run's count, not the members
+    left, so that it keeps the run's chunk shape and reuses its compiled program (from the
+    compilation store in a new process) instead of compiling one for the members left: the last
+    member of a 4-member run resumed in 23.7 s with its own chunk of 1, compilation included."""
+    if 0 < solvable < chunk_size_of(settings):
+        return dataclasses.replace(settings, chunk_size=solvable)
     return settings
 
 
@@ -536,7 +539,7 @@ def run_ensemble(
             finished[i] = True
 
     todo = np.flatnonzero(~finished)
-    settings = _chunk_settings(settings, len(todo))
+    settings = _chunk_settings(settings, sum(not why for why in bad))
     chunk = chunk_rows(settings)
     bar = progress_bar(settings.progress, n, "members")
     bar.update(int(finished.sum()))
