@@ -430,8 +430,9 @@ def _chunk_settings(settings: EnsembleSettings, solvable: int) -> EnsembleSettin
     """``settings`` for a run of ``solvable`` members (those with admissible values): never pad a
     chunk beyond them (a small run). A resumed run passes the whole run's count, not the members
     left, so that it keeps the run's chunk shape and reuses its compiled program (from the
-    compilation store in a new process) instead of compiling one for the members left: the last
-    member of a 4-member run resumed in 23.7 s with its own chunk of 1, compilation included."""
+    compilation store in a new process) instead of compiling one for the members left
+    (tests/test_cli_ensemble.py's resume of the last of 4 members took 23.7 s with a chunk of its
+    own, 2.0 s with the run's)."""
     if 0 < solvable < chunk_size_of(settings):
         return dataclasses.replace(settings, chunk_size=solvable)
     return settings

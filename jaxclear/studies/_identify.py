@@ -23,11 +23,11 @@ first contacts of a first simulation at the initial values and of the data
 Global scan (``_global_scan``, the method in ``_global_search``): before the refinement, a design
 over the bounds is scanned with a capped loss on the first window (chunks of ``SCAN_REFILL_CHUNK``
 points on refilled lanes, ``_scan_chunk``; or with ``FitSettings.scan_engine = "lockstep"`` one
-vmapped solve per chunk of ``SCAN_CHUNK``). A window on which the scanned points tie (``_separates``: before the first
-contact a clearance changes nothing) is not used: the scan moves on to the next window, and if none
-tells the points apart the fit says so and is not a success. The design is then refined until its
-spacing resolves the basin width measured on its own responses, and the best points of distinct
-basins start the refinement.
+vmapped solve per chunk of ``SCAN_CHUNK``). A window on which the scanned points tie
+(``_separates``: before the first contact a clearance changes nothing) is not used: the scan moves
+on to the next window, and if none tells the points apart the fit says so and is not a success.
+The design is then refined until its spacing resolves the basin width measured on its own
+responses, and the best points of distinct basins start the refinement.
 
 Local refinement (``_refine_windows``) is Levenberg–Marquardt on the unconstrained variables
 (``_parameter_space``), from each start on the first window and then from the best one over the
