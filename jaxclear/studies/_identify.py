@@ -122,7 +122,7 @@ def _residuals(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma,
 # Identification differentiates at ``gradient_solver`` settings (its default), where diffrax's
 # discrete derivatives are right and cheaper than the error-controlled sensitivities
 # (docs/differentiation.md); moving fits to ordinary tolerances with the sensitivities is open.
-@eqx.filter_jit
+@stored_jit
 def _residuals_and_jacobian(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask):
     def f(u):
         r = _residuals(
@@ -200,7 +200,7 @@ def _scan_chunk(
     )
 
 
-@eqx.filter_jit
+@stored_jit
 def _first_simulation(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, events):
     """The first simulation (at ``u``, up to ``t1``): residuals (S, N) (meaningful where
     ts <= t1), whether the solve succeeded, and each clearance joint's first ``events`` finished
