@@ -453,7 +453,7 @@ def differentiable_simulate(
             padded = jnp.concatenate([u, jnp.zeros((blocks * size - p,) + u.shape[1:], u.dtype)])
             return jnp.reshape(padded, (blocks, size) + u.shape[1:])
 
-        static_part = {}
+        static_part = {}  # the trajectory's non-array fields, filled when lax.map traces block
 
         def block(dirs):
             directions = jax.tree_util.tree_unflatten(d_def, dirs[:n_values])

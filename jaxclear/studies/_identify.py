@@ -113,6 +113,12 @@ def _residuals(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma,
         extremes=False,
         adjoint=adjoint,
     )
+    return _masked_residuals(traj, names, data, inv_sigma, mask)
+
+
+def _masked_residuals(traj, names, data, inv_sigma, mask):
+    """(S·N,) normalised residuals of a trajectory's signals ``names`` against ``data`` (S, N),
+    zero outside ``mask``; inf where the solve failed (one point; the scan vmaps it)."""
     out = signals(traj, names)
     model = jnp.stack([out[n] for n in names])
     r = (model - data) * inv_sigma[:, None] * mask[None, :]
@@ -165,14 +171,9 @@ def _scan_solve(
     rows = jnp.stack([jnp.asarray(values[n], dtype=float) for n in keys], axis=1)
     program = _Program(mechanism=mechanism, names=keys, config=solver, track=False, max_events=0)
     solved = members_solution(program, rows, t0, ends, starts, None, lanes, ts, count)
-
-    def one(traj):
-        out = signals(traj, names)
-        model = jnp.stack([out[n] for n in names])
-        r = (model - data) * inv_sigma[:, None] * mask[None, :]
-        return jnp.where(traj.succeeded, r, jnp.inf).ravel()
-
-    return jax.vmap(one)(batched_trajectories(solved))
+    return jax.vmap(lambda traj: _masked_residuals(traj, names, data, inv_sigma, mask))(
+        batched_trajectories(solved)
+    )
 
 
 def _scan_chunk(
