@@ -214,6 +214,13 @@ def test_defaults_are_three_clearance_joints():
         assert grid(other) == (pytest.approx(2 * 60 / 5000), 721), argv[0]
     assert settings.config["simulation"]["start"] == "centred"
     assert settings.config["simulation"]["skip_revolutions"] == 1.0
+    # XLA's older emitters: off where they would make the steps depend on the saved points, on
+    # for fit (its saved points are the record's; measured faster to compile and to run)
+    assert settings.config["solver"]["fast_compile"] is False
+    fit = ["fit", "data.csv", "--fit", "B.clearance"]
+    assert resolve_settings(build_parser().parse_args(fit)).config["solver"]["fast_compile"]
+    off = resolve_settings(build_parser().parse_args([*fit, "--no-fast-compile"]))
+    assert off.config["solver"]["fast_compile"] is False
     imex = resolve_settings(build_parser().parse_args(["run", "--solver", "imex"]))
     assert solver_for(imex).method == "kencarp4"
 

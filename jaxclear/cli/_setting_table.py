@@ -732,8 +732,11 @@ SETTINGS: tuple[Setting, ...] = (
         "",
         "compile with XLA's CPU fusion emitters off (XLA_FLAGS=--xla_cpu_use_fusion_emitters=false): "
         "measured 5.4 -> 2.2 s XLA time for about a tenth longer runs (Tsit5, three joints), but then "
-        "the solver's steps depend on the number of saved points (docs/outputs.md); off by default",
+        "the solver's steps depend on the number of saved points (docs/outputs.md); off by default, "
+        "on for jaxclear fit, whose saved points are the record's (README's fit: 40 -> 27 s cold, "
+        "the same estimate to 2e-9)",
         "--fast-compile",
+        command_defaults=(("fit", True),),
     ),
     Setting(
         "solver",
