@@ -23,6 +23,7 @@ and the process's peak RSS. Public API only; prints figures, asserts nothing.
 """
 
 import argparse
+import importlib.metadata
 import resource
 import subprocess
 import time
@@ -56,7 +57,42 @@ def slider_x(p, t1, solver="auto", adjoint="auto"):
     return jaxclear.simulate(build(p), t1, num_points=2, solver=solver, adjoint=adjoint).q[-1, 6]
 
 
-def _timed(f, *args, repeats):
+def scaled_leaves(mechanism):
+    """The mechanism's nonzero scalar inexact leaves, the journal radius first (the clearance is
+    R_B - R_J): (their names, ``scaled(s)``, the mechanism with the first len(s) of them each
+    multiplied by its own factor s_k)."""
+    dynamic, static = eqx.partition(mechanism, eqx.is_inexact_array)
+    paths, treedef = jax.tree_util.tree_flatten_with_path(dynamic)
+    leaves = [x for _, x in paths]
+    names = [jax.tree_util.keystr(k) for k, _ in paths]
+    scalars = [i for i, x in enumerate(leaves) if x.size == 1 and float(x) != 0.0]
+    scalars.sort(key=lambda i: "journal_radius" not in names[i])
+
+    def scaled(s):
+        new = list(leaves)
+        for k, i in enumerate(scalars[: s.shape[0]]):
+            new[i] = leaves[i] * s[k]
+        return eqx.combine(jax.tree_util.tree_unflatten(treedef, new), static)
+
+    return [names[i] for i in scalars], scaled
+
+
+def header() -> str:
+    """jaxclear's, JAX's and diffrax's versions and the commit (marked if the checkout has
+    uncommitted changes)."""
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+    ).stdout.strip()
+    dirty = subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True).stdout
+    return (
+        f"jaxclear {jaxclear.__version__}, jax {jax.__version__}, diffrax "
+        f"{importlib.metadata.version('diffrax')}, commit {commit}"
+        f"{' (uncommitted changes)' if dirty.strip() else ''}"
+    )
+
+
+def timed(f, *args, repeats):
+    """(first call's wall time, best of ``repeats`` warm calls), s."""
     start = time.perf_counter()
     jax.block_until_ready(f(*args))
     first = time.perf_counter() - start
@@ -97,38 +133,26 @@ def cost(window, sizes, repeats):
     t1 = window * 1e-3
     base = {k: jnp.asarray(v) for k, v in NOMINAL.items()}
     primal = jax.jit(lambda p: slider_x(p, t1))
-    first, warm = _timed(primal, base, repeats=repeats)
+    first, warm = timed(primal, base, repeats=repeats)
     print(f"\ncost over {window} ms: primal {warm:.3f} s warm (first call {first:.1f} s)")
-    # p distinct scalar leaves of the mechanism, each scaled by its own factor s_i (the journal
-    # radius first: the clearance is R_B - R_J)
-    dynamic, static = eqx.partition(build(base), eqx.is_inexact_array)
-    paths, treedef = jax.tree_util.tree_flatten_with_path(dynamic)
-    leaves = [x for _, x in paths]
-    names = [jax.tree_util.keystr(k) for k, _ in paths]
-    scalars = [i for i, x in enumerate(leaves) if x.size == 1 and float(x) != 0.0]
-    scalars.sort(key=lambda i: "journal_radius" not in names[i])
+    names, scaled = scaled_leaves(build(base))
     print(
         "p   jacfwd warm  ratio  first     grad warm  ratio  first   (leaves: journal radius, then"
     )
-    print(f"    {', '.join(names[i].split('.')[-1] for i in scalars[1:6])}, ...)")
+    print(f"    {', '.join(n.split('.')[-1] for n in names[1:6])}, ...)")
     for p in sizes:
-        if p > len(scalars):
-            print(f"{p:<3d} only {len(scalars)} nonzero scalar leaves")
+        if p > len(names):
+            print(f"{p:<3d} only {len(names)} nonzero scalar leaves")
             continue
-        chosen = scalars[:p]
 
-        def loss(s, chosen=chosen):
-            new = list(leaves)
-            for k, i in enumerate(chosen):
-                new[i] = leaves[i] * s[k]
-            mechanism = eqx.combine(jax.tree_util.tree_unflatten(treedef, new), static)
-            return jaxclear.simulate(mechanism, t1, num_points=2).q[-1, 6]
+        def loss(s):
+            return jaxclear.simulate(scaled(s), t1, num_points=2).q[-1, 6]
 
         scales = jnp.ones((p,))
         fw = jax.jit(jax.jacfwd(loss))
         rv = jax.jit(jax.grad(loss))
-        f_first, f_warm = _timed(fw, scales, repeats=repeats)
-        r_first, r_warm = _timed(rv, scales, repeats=repeats)
+        f_first, f_warm = timed(fw, scales, repeats=repeats)
+        r_first, r_warm = timed(rv, scales, repeats=repeats)
         print(
             f"{p:<3d} {f_warm:9.3f} s {f_warm / warm:6.2f} {f_first:6.1f} s  "
             f"{r_warm:9.3f} s {r_warm / warm:6.2f} {r_first:6.1f} s"
@@ -148,14 +172,7 @@ def main():
         "--no-accuracy", action="store_true", help="the cost over the longest window only"
     )
     args = parser.parse_args()
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
-    ).stdout.strip()
-    dirty = subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True).stdout
-    print(
-        f"jaxclear {jaxclear.__version__}, jax {jax.__version__}, commit {commit}"
-        f"{' (uncommitted changes)' if dirty.strip() else ''}"
-    )
+    print(header())
     windows = [float(w) for w in args.windows.split(",")]
     if not args.no_accuracy:
         accuracy(windows, not args.no_discrete)
