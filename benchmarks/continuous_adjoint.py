@@ -2,7 +2,7 @@
 
 Usage:
     python benchmarks/continuous_adjoint.py [--windows 0.3,0.5,1,2,3] [--rtols 1e-6,1e-8]
-        [--parameters 1,4,16] [--repeats 3] [--no-accuracy] [--no-cost]
+        [--parameters 1,4,16] [--repeats 3] [--no-accuracy] [--no-cost] [--no-anatomy]
 
 Issue 22, part 3, asks for reverse mode by a continuous adjoint (CVODES ASA, SciMLSensitivity's
 InterpolatingAdjoint): solve the state forward and keep its dense output, then integrate the
@@ -30,7 +30,9 @@ before it is built into ``simulate``:
 - the cost over the longest window for p = 1, 4, 16 scalar leaves (the journal radius first, as
   in ``gradient_defaults``): the adjoint (forward with dense output, then backward) and
   ``jax.grad`` of ``simulate`` at the same settings, both against the primal solve in the same
-  process.
+  process;
+- the per-call cost of a backward stage's parts (the vector field, the dense output, its JVP
+  and VJP), in a ``lax.scan`` of sequential calls.
 
 Public API only; prints figures, asserts nothing.
 """
@@ -227,6 +229,53 @@ def cost(window, sizes, repeats, rtol):
     print(f"peak RSS of this process: {peak:.0f} MB")
 
 
+def anatomy(window, repeats, rtol, calls=12_000):
+    """Per-call cost of what a backward step evaluates: the vector field, the dense output, and
+    the vector field's JVP and VJP at the dense output (p = 1), each in a ``lax.scan`` of
+    ``calls`` sequential calls over the second half of the window."""
+    t1 = window * 1e-3
+    config = _config(rtol)
+    names, scaled = scaled_leaves(build(NOMINAL))
+    s = jnp.ones((1,))
+    y0, _ = _start(scaled, s)
+    sol = jax.jit(lambda s: forward(scaled, s, y0, t1, config, dense=True))(s)
+    ts = jnp.linspace(0.5 * t1, t1, calls)
+
+    def in_scan(body):  # each call depends on the last (no vectorising across calls)
+        def run(s):
+            def step(c, t):
+                return c + 1e-30 * body(t, 1e-30 * c, s), None
+
+            return jax.lax.scan(step, jnp.zeros_like(y0), ts)[0]
+
+        return jax.jit(run)
+
+    def jvp(t, c, s):
+        y = sol.evaluate(t)
+        return jax.jvp(lambda y: vector_field(t, y, scaled(s)), (y,), (jnp.ones_like(y) + c,))[1]
+
+    def vjp(t, c, s):
+        y = sol.evaluate(t)
+        _, pull = jax.vjp(lambda y, s: vector_field(t, y, scaled(s)), y, s)
+        return pull(jnp.ones_like(y) + c)[0]
+
+    bodies = {
+        "vector field": lambda t, c, s: vector_field(t, y0 + c, scaled(s)),
+        "dense output": lambda t, c, s: sol.evaluate(t) + c,
+        "vector field at the dense output": lambda t, c, s: vector_field(
+            t, sol.evaluate(t) + c, scaled(s)
+        ),
+        "its JVP": jvp,
+        "its VJP (the adjoint's)": vjp,
+    }
+    print(
+        f"\nper call, {calls} calls in a scan over {window / 2:g}-{window:g} ms at rtol {rtol:g}:"
+    )
+    for name, body in bodies.items():
+        _, warm = timed(in_scan(body), s, repeats=repeats)
+        print(f"  {name:34s} {warm / calls * 1e6:7.2f} us")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--windows", default="0.3,0.5,1,2,3", help="comma list, ms")
@@ -235,6 +284,7 @@ def main():
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--no-accuracy", action="store_true")
     p.add_argument("--no-cost", action="store_true")
+    p.add_argument("--no-anatomy", action="store_true")
     a = p.parse_args()
     windows = [float(w) for w in a.windows.split(",")]
     print(header())
@@ -243,6 +293,8 @@ def main():
         accuracy(windows, [float(r) for r in a.rtols.split(",")])
     if not a.no_cost:
         cost(max(windows), [int(x) for x in a.parameters.split(",")], a.repeats, 1e-6)
+    if not a.no_anatomy:
+        anatomy(max(windows), a.repeats, 1e-6)
     print(f"\ntotal {time.perf_counter() - start:.0f} s")
 
 
