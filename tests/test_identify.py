@@ -154,6 +154,10 @@ def test_fit_command_writes_results(quick_data, quick_fit, config, tmp_path):
     assert info["success"] is True and info["reason"] == ""
     assert "one standard deviation (1σ)" in info["uncertainty"]
     assert info["history"] and info["time_s"] > 0
+    # in this process JAX had started: the fit's default XLA flag could not be applied, and
+    # fit.json says so rather than repeat the setting
+    assert info["config"]["solver"]["fast_compile"] is True
+    assert info["fast_compile"].startswith("not applied")
     header = (out / "fit.csv").read_text().splitlines()[0].split(",")
     assert header[:4] == ["t", "slider_x_measured", "slider_x_fitted", "slider_x_residual"]
     for png in ("fit.png", "loss.png"):

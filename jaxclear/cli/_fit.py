@@ -263,7 +263,7 @@ def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     settings = resolve_settings(args)
     config = settings.config
     solver_for(settings)  # reject a bad solver name before any work
-    apply_fast_compile(config["solver"]["fast_compile"])
+    fast_compile = apply_fast_compile(config["solver"]["fast_compile"])  # before JAX starts
     compilation_cache = apply_compilation_cache(config["solver"]["compilation_cache"])
     parameters = parse_fit_parameters(args.fit_parameters)
     noise = _noise(args.noise)
@@ -359,6 +359,7 @@ def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
         **summary,
         "versions": package_versions(),
         "jax_backend": jax.default_backend(),
+        "fast_compile": fast_compile,
         "compilation_cache": compilation_cache,
         "files": [FIT_JSON, FIT_CSV, "fit.png", "loss.png"],
     }
