@@ -3,6 +3,7 @@
 Usage:
     python benchmarks/gradient_accuracy.py [--cases B-coulomb,OAB-coulomb,B-lugre,OAB-lugre]
         [--windows 0.5,1,2,3,4,5,6,8,12] [--steps 1e-5,1e-6,1e-7] [--no-default]
+        [--only-default] [--rtols 1e-7,1e-8]
 
 Four cases of the benchmark slider–crank at 5000 rpm (one revolution = 12 ms, c = 0.5 mm,
 Lankarani–Nikravesh contact c_e = 0.9, journals starting centred): clearance at B or at O, A and B,
@@ -28,7 +29,11 @@ samples inside it). Printed per window and parameter:
   (``jax.vjp``, ``config.reverse_adjoint()``) and forward mode (``jax.jacfwd``,
   ``adjoint="forward"``) at ``jaxclear.gradient_solver`` settings (unless ``--only-default``), and
   at the defaults (solver ``"auto"``, rtol 1e-6, and simulate's default adjoints: the
-  error-controlled sensitivities) unless ``--no-default``.
+  error-controlled sensitivities, whose solve runs at rtol 1e-8: ``SolverConfig.sensitivity_rtol``)
+  unless ``--no-default``;
+- with ``--rtols``, reverse mode's errors at those tolerances (solver ``"auto"``'s method, atol =
+  1e-3 rtol, the sensitivity solve at the same rtol), and for every setting the relative error of the loss itself against the reference
+  solve: how far the derivative's error follows the solution's own.
 
 ``--checkpoints 30,300,1000,default,199999`` instead compares reverse-mode gradients of the first
 case's loss over the first window with these numbers of checkpoints (``default``: diffrax's, about
@@ -146,6 +151,19 @@ def main():
         help="skip the gradient_solver settings (only the default settings against the reference)",
     )
     parser.add_argument(
+        "--rtols",
+        default="",
+        help="also at these tolerances (comma list; solver 'auto''s method, atol = 1e-3 rtol, "
+        "sensitivity_rtol = rtol), reverse mode only, each with the loss's own error",
+    )
+    parser.add_argument(
+        "--variation",
+        default="",
+        help="instead: how fast the derivative itself moves with the parameter: reverse-mode "
+        "gradients at this rtol (solver 'auto''s method, atol = 1e-3 rtol) with clearance and "
+        "restitution scaled by 1 + k·1e-7, k = ±1, ±3, ±10 (first case only)",
+    )
+    parser.add_argument(
         "--checkpoints",
         default="",
         help="instead: reverse-mode gradients of the first case's loss over the first window "
@@ -168,6 +186,12 @@ def main():
         f"one revolution at {RPM:g} rpm ({REVOLUTION * 1e3:g} ms), {SAMPLES} samples, "
         f"windows {args.windows} ms; FD relative steps {args.steps}"
     )
+    if args.variation:
+        case = args.cases.split(",")[0]
+        variation_study(
+            case, float(args.variation), jax, jnp, jaxclear, ts, weights, target, windows
+        )
+        return
     if args.checkpoints:
         case = args.cases.split(",")[0]
         checkpoint_study(case, args.checkpoints, windows[0], jax, jnp, jaxclear, ts, target)
@@ -185,7 +209,37 @@ def main():
             target,
             args.no_default,
             args.only_default,
+            [float(r) for r in args.rtols.split(",") if r],
         )
+
+
+def variation_study(case, rtol, jax, jnp, jaxclear, ts, weights, target, windows):
+    """Converged gradients at parameters p (1 + k·1e-7): how much the derivative moves over a
+    parameter change as small as a solve's own error (the state at rtol 1e-6 is off by about
+    what a relative change of 1e-7 moves it)."""
+    _, friction = CASES[case]
+    p0 = {k: jnp.asarray(v) for k, v in NOMINAL[friction].items()}
+    config = jaxclear.recommended_solver(build(case, p0))
+    config = config.replace(rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol)
+    scales = jnp.asarray(SCALES)[:, None]
+    w = jnp.asarray(weights)
+
+    def losses(p):
+        traj = jaxclear.simulate(build(case, p), REVOLUTION, ts=ts, solver=config, extremes=False)
+        r2 = (((responses(traj) - jnp.asarray(target)) / scales) ** 2).sum(axis=0)
+        return (r2[None] * w).sum(axis=-1)
+
+    jac = jax.jit(jax.jacrev(losses))
+    header = " ".join(f"{v * 1e3:>9g}" for v in windows)
+    print(f"\n{case}, {config.method} rtol {rtol:g}: change of d loss / d p against p's nominal")
+    for name in ("clearance", "restitution"):
+        grads = {}
+        for k in (-10, -3, -1, 0, 1, 3, 10):
+            grads[k] = np.asarray(jac({**p0, name: p0[name] * (1 + k * 1e-7)})[name])
+        print(f"d loss / d {name}, window (ms): {header}")
+        for k, g in grads.items():
+            change = (g - grads[0]) / np.abs(grads[0])
+            print(f"  p (1 {k * 1e-7:+.0e})    {' '.join(f'{100 * v:+8.3f}%' for v in change)}")
 
 
 def checkpoint_study(case, counts, window, jax, jnp, jaxclear, ts, target):
@@ -223,7 +277,18 @@ def checkpoint_study(case, counts, window, jax, jnp, jaxclear, ts, target):
 
 
 def run_case(
-    case, jax, jnp, jaxclear, windows, steps, ts, weights, target, no_default, only_default=False
+    case,
+    jax,
+    jnp,
+    jaxclear,
+    windows,
+    steps,
+    ts,
+    weights,
+    target,
+    no_default,
+    only_default=False,
+    rtols=(),
 ):
     joints, friction = CASES[case]
     p0 = {k: jnp.asarray(v) for k, v in NOMINAL[friction].items()}
@@ -267,25 +332,31 @@ def run_case(
     variants = [] if only_default else [("gradient_solver", config, config.reverse_adjoint())]
     if not no_default:
         variants.append(("default", "auto", "reverse"))
+    auto = jaxclear.recommended_solver(build(case, p0))
+    for rtol in rtols:
+        solver = auto.replace(rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol)
+        variants.append((f"rtol {rtol:g}", solver, "reverse"))
     ad = {}
+    loss_error = {}  # label -> (windows,) relative error of the loss itself against the reference
     for label, solver, reverse_adjoint in variants:
-        # forward mode: jacfwd of the responses, one pass for all parameters; the loss's gradient
-        # pairs them with the responses of the same evaluation (the primal output of the jvp, as
-        # in jax.jacfwd of a loss), not with those of a separate undifferentiated solve
-        def with_responses(p, solver=solver):
-            out, n = outputs(p, solver, "forward")
-            return out, (out, n)
+        if not label.startswith("rtol"):
+            # forward mode: jacfwd of the responses, one pass for all parameters; the loss's gradient
+            # pairs them with the responses of the same evaluation (the primal output of the jvp, as
+            # in jax.jacfwd of a loss), not with those of a separate undifferentiated solve
+            def with_responses(p, solver=solver):
+                out, n = outputs(p, solver, "forward")
+                return out, (out, n)
 
-        jac = jax.jit(jax.jacfwd(with_responses, has_aux=True))
-        start = time.perf_counter()
-        d_out, (out_fwd, n_fwd) = jac(p0)
-        first_fwd = time.perf_counter() - start
-        out_fwd = np.asarray(out_fwd)
-        ad[(label, "forward")] = (
-            {k: loss_gradient(out_fwd, np.asarray(d_out[k]), target, weights) for k in names},
-            int(n_fwd),
-            first_fwd,
-        )
+            jac = jax.jit(jax.jacfwd(with_responses, has_aux=True))
+            start = time.perf_counter()
+            d_out, (out_fwd, n_fwd) = jac(p0)
+            first_fwd = time.perf_counter() - start
+            out_fwd = np.asarray(out_fwd)
+            ad[(label, "forward")] = (
+                {k: loss_gradient(out_fwd, np.asarray(d_out[k]), target, weights) for k in names},
+                int(n_fwd),
+                first_fwd,
+            )
 
         # reverse mode: one vjp, applied to each window's cotangent
         def windows_grad(p, solver=solver, reverse_adjoint=reverse_adjoint):
@@ -295,17 +366,21 @@ def run_case(
             cotangents = residual[None] * jnp.asarray(weights)[:, None, :]
             zero = np.zeros((), dtype=jax.dtypes.float0)
             grads = jax.lax.map(lambda c: pullback((c, zero))[0], cotangents)
-            return grads, n
+            return grads, n, out
 
         start = time.perf_counter()
-        g_rev, n_rev = jax.jit(windows_grad)(p0)
+        g_rev, n_rev, out_rev = jax.jit(windows_grad)(p0)
         first_rev = time.perf_counter() - start
+        loss_rev = loss_from_responses(np.asarray(out_rev), target, weights)
+        loss_error[label] = np.abs(loss_rev - loss0) / np.abs(loss0)
         ad[(label, "reverse")] = ({k: np.asarray(g_rev[k]) for k in names}, int(n_rev), first_rev)
 
     middle = len(steps) // 2
     header = " ".join(f"{w * 1e3:>9g}" for w in windows)
     print(f"loss per window (ms): {header}")
     print(f"                      {' '.join(f'{v:9.3g}' for v in loss0)}")
+    for label, err in loss_error.items():
+        print(f"  its error, {label[:14]:14s} {' '.join(f'{100 * v:8.2g}%' for v in err)}")
     for name in names:
         print(f"d loss / d {name} (nominal {float(p0[name]):g})")
         for i, r in enumerate(steps):

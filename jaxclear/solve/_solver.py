@@ -31,6 +31,14 @@ EXPONENTIAL = {"lawson-tsit5": LawsonTsit5}
 METHODS = tuple(EXPLICIT) + tuple(EXPONENTIAL) + tuple(IMPLICIT) + tuple(IMEX)
 
 
+SENSITIVITY_RTOL = 1e-8
+"""Loosest relative tolerance of the sensitivity solve by default (``SolverConfig.sensitivity_rtol``).
+Measured with ``python benchmarks/gradient_accuracy.py --cases B-coulomb --only-default --rtols
+1e-7,1e-8,1e-9`` (docs/differentiation.md): the derivative of the loss over a revolution was off
+by up to 26 % at rtol 1e-6, 2.2 % at 1e-7 and 0.5 % at 1e-8 (the central differences' own spread
+there), no better at 1e-9."""
+
+
 class SolverConfig(eqx.Module):
     """Time-integration settings (all static).
 
@@ -67,6 +75,13 @@ class SolverConfig(eqx.Module):
             (``jaxclear.solve._sensitivity``, docs/differentiation.md). ``False`` leaves them out
             of the norm, as diffrax's own differentiation does: for checks only, the derivative's
             error is then not controlled.
+        sensitivity_rtol: relative tolerance of that sensitivity solve (state and tangents; its
+            absolute tolerances scale with it: ``atol * sensitivity_rtol / rtol``). ``None``
+            (default): ``min(rtol, SENSITIVITY_RTOL)``, 1e-8 at the default rtol 1e-6, where
+            derivatives over a revolution match converged central differences; at rtol 1e-6
+            they were off by up to 26 % (docs/differentiation.md, "How the derivative's error
+            follows the tolerance"). Pass ``sensitivity_rtol=rtol`` for derivatives at the
+            solve's own tolerance: about half the steps, right over short windows only.
     """
 
     method: str = eqx.field(static=True, default="kvaerno5")
@@ -82,6 +97,7 @@ class SolverConfig(eqx.Module):
     memory_speed: float = eqx.field(static=True, default=1.0)
     checkpoints: int | None = eqx.field(static=True, default=None)
     sensitivity_error_control: bool = eqx.field(static=True, default=True)
+    sensitivity_rtol: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if self.method not in METHODS:
@@ -92,6 +108,13 @@ class SolverConfig(eqx.Module):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and value > 0):
                 raise ValueError(f"SolverConfig.{name} must be a positive number, got {value!r}.")
+        if self.sensitivity_rtol is not None and not (
+            isinstance(self.sensitivity_rtol, int | float) and self.sensitivity_rtol > 0
+        ):
+            raise ValueError(
+                "SolverConfig.sensitivity_rtol must be None (default: min(rtol, 1e-8)) or a "
+                f"positive number, got {self.sensitivity_rtol!r}."
+            )
         if not (isinstance(self.max_steps, int) and self.max_steps > 0):
             raise ValueError(
                 f"SolverConfig.max_steps must be a positive integer, got {self.max_steps!r}."
@@ -119,6 +142,17 @@ class SolverConfig(eqx.Module):
     def replace(self, **changes) -> "SolverConfig":
         """Copy with some settings changed."""
         return dataclasses.replace(self, **changes)
+
+    def sensitivity_settings(self) -> "SolverConfig":
+        """The settings of the error-controlled sensitivity solve that derivatives of ``simulate``
+        run (``jax.jvp``/``jax.grad`` with the default adjoints): rtol ``sensitivity_rtol``
+        (default ``min(rtol, SENSITIVITY_RTOL)``), atol scaled with it, the rest unchanged."""
+        rtol = self.sensitivity_rtol
+        if rtol is None:
+            rtol = min(self.rtol, SENSITIVITY_RTOL)
+        if rtol == self.rtol:
+            return self
+        return self.replace(rtol=rtol, atol=self.atol * rtol / self.rtol, sensitivity_rtol=rtol)
 
     def reverse_adjoint(self) -> diffrax.RecursiveCheckpointAdjoint:
         """The reverse-mode adjoint for these settings, to pass as ``simulate(..., adjoint=...)``
