@@ -590,14 +590,16 @@ def simulate(
         y0: initial state (from ``assemble``) to skip assembly.
         adjoint: how derivatives go through the solve: ``"reverse"`` (``jax.grad``, ``jax.vjp``,
             ``jax.jacrev``: the error-controlled sensitivities along every perturbed scalar,
-            contracted with the cotangent), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``: one
-            augmented solve per direction, no reverse mode), ``"auto"`` (default: forward mode when
+            contracted with the cotangent), ``"forward"`` (``jax.jvp``, ``jax.jacfwd``: the
+            directions share one augmented solve up to 16 perturbed scalars; no reverse mode), ``"auto"`` (default: forward mode when
             the inputs carry ``jax.jvp``/``jax.jacfwd`` tracers, reverse mode under
             ``jax.grad``/``jax.vjp``/``jax.jacrev``; when a ``jax.jit`` of your function hides the
             transformation, a rule that serves both: the sensitivities along every perturbed
             scalar, contracted with the tangents), ``"discrete-forward"``/``"discrete-reverse"``
             (diffrax's differentiation of the solver's steps, error not controlled) or any
-            ``diffrax.AbstractAdjoint``. No effect on the values.
+            ``diffrax.AbstractAdjoint``. The sensitivity solve runs at ``solver.sensitivity_rtol``
+            (default ``min(rtol, 1e-8)``: derivatives over a revolution match converged central
+            differences, docs/differentiation.md). No effect on the values.
         statistics_start: start time, s, of the window over which ``Trajectory.extremes`` (peak
             forces, penetrations and accelerations, torque extremes and RMS) are taken from the
             solver's steps; default ``t0``. Use it to leave out the start-up revolutions.
