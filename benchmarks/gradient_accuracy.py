@@ -3,7 +3,7 @@
 Usage:
     python benchmarks/gradient_accuracy.py [--cases B-coulomb,OAB-coulomb,B-lugre,OAB-lugre]
         [--windows 0.5,1,2,3,4,5,6,8,12] [--steps 1e-5,1e-6,1e-7] [--no-default]
-        [--only-default] [--rtols 1e-7,1e-8]
+        [--only-default] [--rtols 1e-7,1e-8] [--method lawson-tsit5] [--variation 1e-9]
 
 Four cases of the benchmark slider–crank at 5000 rpm (one revolution = 12 ms, c = 0.5 mm,
 Lankarani–Nikravesh contact c_e = 0.9, journals starting centred): clearance at B or at O, A and B,
@@ -29,10 +29,11 @@ samples inside it). Printed per window and parameter:
   (``jax.vjp``, ``config.reverse_adjoint()``) and forward mode (``jax.jacfwd``,
   ``adjoint="forward"``) at ``jaxclear.gradient_solver`` settings (unless ``--only-default``), and
   at the defaults (solver ``"auto"``, rtol 1e-6, and simulate's default adjoints: the
-  error-controlled sensitivities, whose solve runs at rtol 1e-8: ``SolverConfig.sensitivity_rtol``)
+  error-controlled sensitivities, whose solve runs at rtol 1e-8, Tsit5 as Lawson–Tsit5:
+  ``SolverConfig.sensitivity_rtol``, ``sensitivity_method``)
   unless ``--no-default``;
-- with ``--rtols``, reverse mode's errors at those tolerances (solver ``"auto"``'s method, atol =
-  1e-3 rtol, the sensitivity solve at the same rtol), and for every setting the relative error of the loss itself against the reference
+- with ``--rtols``, reverse mode's errors at those tolerances (solver ``"auto"``'s method or
+  ``--method``, atol = 1e-3 rtol, the sensitivity solve at the same rtol and method), and for every setting the relative error of the loss itself against the reference
   solve: how far the derivative's error follows the solution's own.
 
 ``--checkpoints 30,300,1000,default,199999`` instead compares reverse-mode gradients of the first
@@ -157,6 +158,11 @@ def main():
         "sensitivity_rtol = rtol), reverse mode only, each with the loss's own error",
     )
     parser.add_argument(
+        "--method",
+        default="",
+        help="method of the --rtols settings (default: solver 'auto''s for the case)",
+    )
+    parser.add_argument(
         "--variation",
         default="",
         help="instead: how fast the derivative itself moves with the parameter: reverse-mode "
@@ -210,6 +216,7 @@ def main():
             args.no_default,
             args.only_default,
             [float(r) for r in args.rtols.split(",") if r],
+            args.method,
         )
 
 
@@ -220,7 +227,9 @@ def variation_study(case, rtol, jax, jnp, jaxclear, ts, weights, target, windows
     _, friction = CASES[case]
     p0 = {k: jnp.asarray(v) for k, v in NOMINAL[friction].items()}
     config = jaxclear.recommended_solver(build(case, p0))
-    config = config.replace(rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol)
+    config = config.replace(
+        rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol, sensitivity_method=config.method
+    )
     scales = jnp.asarray(SCALES)[:, None]
     w = jnp.asarray(weights)
 
@@ -289,6 +298,7 @@ def run_case(
     no_default,
     only_default=False,
     rtols=(),
+    method="",
 ):
     joints, friction = CASES[case]
     p0 = {k: jnp.asarray(v) for k, v in NOMINAL[friction].items()}
@@ -333,13 +343,17 @@ def run_case(
     if not no_default:
         variants.append(("default", "auto", "reverse"))
     auto = jaxclear.recommended_solver(build(case, p0))
+    if method:
+        auto = auto.replace(method=method)
     for rtol in rtols:
-        solver = auto.replace(rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol)
-        variants.append((f"rtol {rtol:g}", solver, "reverse"))
+        solver = auto.replace(
+            rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol, sensitivity_method=auto.method
+        )
+        variants.append((f"{method or 'rtol'} {rtol:g}", solver, "reverse"))
     ad = {}
     loss_error = {}  # label -> (windows,) relative error of the loss itself against the reference
     for label, solver, reverse_adjoint in variants:
-        if not label.startswith("rtol"):
+        if label in ("gradient_solver", "default"):
             # forward mode: jacfwd of the responses, one pass for all parameters; the loss's gradient
             # pairs them with the responses of the same evaluation (the primal output of the jvp, as
             # in jax.jacfwd of a loss), not with those of a separate undifferentiated solve
@@ -380,7 +394,7 @@ def run_case(
     print(f"loss per window (ms): {header}")
     print(f"                      {' '.join(f'{v:9.3g}' for v in loss0)}")
     for label, err in loss_error.items():
-        print(f"  its error, {label[:14]:14s} {' '.join(f'{100 * v:8.2g}%' for v in err)}")
+        print(f"  its error, {label[:18]:18s} {' '.join(f'{100 * v:8.2g}%' for v in err)}")
     for name in names:
         print(f"d loss / d {name} (nominal {float(p0[name]):g})")
         for i, r in enumerate(steps):
@@ -392,7 +406,7 @@ def run_case(
             )
         for (label, mode), (grads, n, first) in ad.items():
             err = np.abs(grads[name] - fd[name][middle]) / np.abs(fd[name][middle])
-            print(f"  {mode:7s} {label[:14]:14s} {' '.join(f'{100 * v:8.2g}%' for v in err)}")
+            print(f"  {mode:7s} {label[:18]:18s} {' '.join(f'{100 * v:8.2g}%' for v in err)}")
     for (label, mode), (grads, n, first) in ad.items():
         print(f"{label}, {mode}: {n} steps, first call (compile + run) {first:.1f} s")
 

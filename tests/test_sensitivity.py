@@ -117,16 +117,21 @@ def test_default_sensitivity_tolerance_holds_over_a_longer_window(derivatives):
 
 def test_sensitivity_settings():
     """What the sensitivity solve runs at: rtol ``min(rtol, 1e-8)`` by default, atol scaled with
-    it, or ``sensitivity_rtol`` when given; a bad value is refused, naming the setting."""
+    it, Tsit5 as Lawson–Tsit5 where there are impact memories, or ``sensitivity_rtol`` and
+    ``sensitivity_method`` when given; a bad value is refused, naming the setting."""
     default = jaxclear.SolverConfig(method="tsit5").sensitivity_settings()
-    assert (default.rtol, default.method) == (1e-8, "tsit5")
+    assert (default.rtol, default.method) == (1e-8, "lawson-tsit5")
     assert default.atol == pytest.approx(1e-11, rel=1e-12)
-    tight = jaxclear.SolverConfig(method="tsit5", rtol=1e-10, atol=1e-13)
+    no_memory = jaxclear.SolverConfig(method="tsit5").sensitivity_settings(memory=False)
+    assert (no_memory.rtol, no_memory.method) == (1e-8, "tsit5")
+    tight = jaxclear.SolverConfig(method="kencarp4", rtol=1e-10, atol=1e-13)
     assert tight.sensitivity_settings() is tight
-    own = jaxclear.SolverConfig(rtol=1e-6, sensitivity_rtol=1e-6)
+    own = jaxclear.SolverConfig(method="tsit5", sensitivity_rtol=1e-6, sensitivity_method="tsit5")
     assert own.sensitivity_settings() is own
     with pytest.raises(ValueError, match="sensitivity_rtol"):
         jaxclear.SolverConfig(sensitivity_rtol=0.0)
+    with pytest.raises(ValueError, match="sensitivity_method"):
+        jaxclear.SolverConfig(sensitivity_method="euler")
 
 
 def test_transformation_outside_a_jit(derivatives):

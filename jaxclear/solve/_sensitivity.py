@@ -297,7 +297,7 @@ def sensitivity_core(
         (trajectory, tangents): a ``Trajectory`` and a ``Trajectory`` of tangents whose array
         leaves have a leading axis p (float0 for integer leaves).
     """
-    config = config.sensitivity_settings()
+    config = config.sensitivity_settings(memory=bool(np.any(mechanism.memory_rows)))
     theta, dtheta, rebuild = _perturbed(mechanism, directions)
     p = dtheta[0].shape[0] if dtheta else dy0.shape[0]
     size = mechanism.state_size
