@@ -27,15 +27,15 @@ WINDOWS = (3e-4, 1e-3)
 """s: through the first impact (0.3 ms) and after several (1 ms)."""
 STATE_RTOL = 1e-2
 """Slider x: the issue's target, 1 % of the converged central difference (measured 0.002 % at
-0.3 ms, 0.008 % at 1 ms with the sensitivity solve at rtol 1e-6; 0.0001 % and 0.016 % at its
-default 1e-8, commit 9bb8d20)."""
+0.3 ms, 0.008 % at 1 ms with the sensitivity solve at rtol 1e-6; 0.0001 % and 0.017 % at its
+default, Lawson–Tsit5 at 1e-8, commit 2df3915)."""
 STATISTIC_RTOL = 5e-2
 """Peak force and torque RMS, 5 %: measured, with the sensitivity solve at rtol 1e-6, 0.2–2.5 %
 for the peak (the sample that holds it, and the parabola through three, move with the step
 sequence) and 0.2 % (0.3 ms) and 1.6–2.6 % (1 ms) for the RMS, which is the trapezoidal rule over
-the solver's steps, so its value and derivative carry that rule's error; at the default
-sensitivity rtol 1e-8 (commit 9bb8d20) 0.57 % / 0.54 % for the peak and 0.05 % / 0.44 % for the
-RMS at 0.3 / 1 ms. The statistics' central
+the solver's steps, so its value and derivative carry that rule's error; with the default
+sensitivity solve (Lawson–Tsit5 at rtol 1e-8, commit 2df3915) 0.21 % / 0.24 % for the peak and
+0.07 % / 0.45 % for the RMS at 0.3 / 1 ms. The statistics' central
 differences at the tight settings agree to about 1 % only at relative steps 1e-4 and 1e-5 (at
 1e-6 the peak estimate's and the rule's own noise shows), hence the coarser steps."""
 
@@ -99,13 +99,15 @@ def test_default_settings_give_the_solution_derivative(derivatives, window):
 LONG_WINDOW = 4.25e-3
 """s: after about fifteen impacts. With the sensitivity solve at the state's rtol 1e-6
 (``sensitivity_rtol=1e-6``, the default before) d x_slider / d c was 56 % off here (2.6 % at
-3 ms); at the default ``sensitivity_rtol`` (1e-8) 0.035 % (measured, 2026-11-28)."""
+3 ms); at the default settings 0.035 % (Tsit5 at 1e-8, commit 9bb8d20) and 0.0024 %
+(Lawson–Tsit5 at 1e-8, 2df3915)."""
 
 
 def test_default_sensitivity_tolerance_holds_over_a_longer_window(derivatives):
     """The sensitivity solve runs at ``min(rtol, 1e-8)`` by default
-    (``SolverConfig.sensitivity_rtol``): over 4.25 ms its derivative of slider x matches the
-    converged central difference, where one at the state's own rtol 1e-6 did not."""
+    (``SolverConfig.sensitivity_rtol``; Lawson–Tsit5 for Tsit5, ``sensitivity_method``): over
+    4.25 ms its derivative of slider x matches the converged central difference, where one at
+    the state's own rtol 1e-6 did not."""
     d = derivatives
     c, t1 = jnp.asarray(CLEARANCE), jnp.asarray(LONG_WINDOW)
     reverse = float(np.asarray(d["reverse"](c, t1))[0])
@@ -177,10 +179,13 @@ def test_time_arguments_name_the_discrete_adjoints():
 def test_tangents_left_out_of_the_norm():
     """Without the tangents in the controller's norm the derivative is not controlled: off by
     tens of per cent over 1 ms (measured 0.512 against 0.763)."""
-    # at the solve's own tolerance: by default the sensitivity solve runs at 1e-8, where even the
-    # uncontrolled tangents may come out right over this window
+    # at the solve's own tolerance and method: by default the sensitivity solve runs Lawson-Tsit5
+    # at 1e-8, where even the uncontrolled tangents may come out right over this window
     loose = jaxclear.SolverConfig(
-        method="tsit5", sensitivity_error_control=False, sensitivity_rtol=1e-6
+        method="tsit5",
+        sensitivity_error_control=False,
+        sensitivity_rtol=1e-6,
+        sensitivity_method="tsit5",
     )
     tight = jaxclear.gradient_solver(_mechanism(CLEARANCE))
 
