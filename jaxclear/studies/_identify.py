@@ -32,8 +32,10 @@ responses, and the best points of distinct basins start the refinement.
 Local refinement (``_refine_windows``) is Levenberg–Marquardt on the unconstrained variables
 (``_parameter_space``), from each start on the first window and then from the best one over the
 longer windows, with the Jacobian of the residuals by forward-mode differentiation through the
-solve (``jax.jacfwd``; cost ≈ (1 + 0.5 p) solves for p parameters), at solver settings whose
-gradients match converged finite differences (``jaxclear.gradient_solver``).
+solve (``jax.jacfwd``; cost ≈ (1 + 0.5 p) solves for p parameters): by default at solver
+settings whose discrete gradients match converged finite differences
+(``jaxclear.gradient_solver``), at any other settings from the error-controlled sensitivities
+(``jacobian_adjoint``).
 
 Uncertainty (``_estimates``): the Gauss–Newton covariance at the optimum in the parameters' units,
 C = s² (JᵀJ)⁻¹ + diag(Δθ² + ρ²), with J = ∂r/∂θ over the windows used, s² = max(1, Σr² / (N − p)),
@@ -125,9 +127,16 @@ def _masked_residuals(traj, names, data, inv_sigma, mask):
     return jnp.where(traj.succeeded, r, jnp.inf).ravel()
 
 
-# Identification differentiates at ``gradient_solver`` settings (its default), where diffrax's
-# discrete derivatives are right and cheaper than the error-controlled sensitivities
-# (docs/differentiation.md); moving fits to ordinary tolerances with the sensitivities is open.
+def jacobian_adjoint(mechanism, solver: SolverConfig) -> str:
+    """How a fit differentiates its residuals: diffrax's discrete forward mode at exactly
+    ``gradient_solver`` settings (identification's default), where it was measured right
+    (docs/differentiation.md, "Settings for gradients"); the error-controlled forward
+    sensitivities at any other settings, where the discrete derivatives are not controlled
+    (e.g. ``--solver lawson-tsit5 --rtol 1e-8 --atol 1e-11``: the same estimates, measured in
+    docs/identification.md)."""
+    return "discrete-forward" if solver == gradient_solver(mechanism) else "forward"
+
+
 @stored_jit
 def _residuals_and_jacobian(mechanism, params, names, solver, u, t0, t1, ts, data, inv_sigma, mask):
     def f(u):
@@ -143,7 +152,7 @@ def _residuals_and_jacobian(mechanism, params, names, solver, u, t0, t1, ts, dat
             data,
             inv_sigma,
             mask,
-            "discrete-forward",
+            jacobian_adjoint(mechanism, solver),
         )
         return r, r
 
@@ -864,7 +873,10 @@ def identify(
             first data time).
         t1: end of the simulated span, s (default the last data time); data after it are an error.
         solver: ``SolverConfig`` or name; default ``jaxclear.gradient_solver(mechanism)``
-            (settings whose derivatives match converged finite differences).
+            (settings whose derivatives match converged finite differences). At other settings
+            the Jacobian comes from the error-controlled sensitivities (``simulate``'s
+            ``adjoint="forward"``), right at ordinary tolerances too: Lawson–Tsit5 at rtol 1e-8,
+            atol 1e-11 gave the same estimates to 1e-8 in less time (docs/identification.md).
         settings: ``FitSettings``: the growing windows (``horizons``), the global scan
             (``scan_points``) and the optimiser (``max_iterations``, ``tolerance``).
         progress: print a progress bar (tqdm) over the fit's evaluations: per window, the scan's
