@@ -32,10 +32,10 @@ responses, and the best points of distinct basins start the refinement.
 Local refinement (``_refine_windows``) is Levenberg–Marquardt on the unconstrained variables
 (``_parameter_space``), from each start on the first window and then from the best one over the
 longer windows, with the Jacobian of the residuals by forward-mode differentiation through the
-solve (``jax.jacfwd``; cost ≈ (1 + 0.5 p) solves for p parameters): by default at solver
-settings whose discrete gradients match converged finite differences
-(``jaxclear.gradient_solver``), at any other settings from the error-controlled sensitivities
-(``jacobian_adjoint``).
+solve (``jax.jacfwd``; cost ≈ (1 + 0.5 p) solves for p parameters): from the error-controlled
+sensitivities (``jacobian_adjoint``), at Lawson–Tsit5 rtol 1e-8 by default with Coulomb-type
+friction (``default_fit_solver``), or diffrax's discrete derivatives at ``gradient_solver``
+settings, where they match converged finite differences (the default otherwise).
 
 Uncertainty (``_estimates``): the Gauss–Newton covariance at the optimum in the parameters' units,
 C = s² (JᵀJ)⁻¹ + diag(Δθ² + ρ²), with J = ∂r/∂θ over the windows used, s² = max(1, Σr² / (N − p)),
@@ -73,7 +73,7 @@ from ..io._measurements import Measurements
 from ..model import Mechanism, get_parameter, with_parameters
 from ..solve._lanes import DEFAULT_LANES, _Program, batched_trajectories, members_solution
 from ..solve._simulate import simulate
-from ..solve._solver import SolverConfig, gradient_solver, solver_config
+from ..solve._solver import SolverConfig, gradient_solver, recommended_solver, solver_config
 from ._engine import EnsembleSettings, chunk_rows, map_members
 from ._fit_settings import (
     INFORMATIVE_SPREAD,
@@ -127,13 +127,24 @@ def _masked_residuals(traj, names, data, inv_sigma, mask):
     return jnp.where(traj.succeeded, r, jnp.inf).ravel()
 
 
+def default_fit_solver(mechanism) -> SolverConfig:
+    """``identify``'s default settings. With clearance joints whose solver would be Tsit5
+    (Coulomb-type friction): Lawson–Tsit5 at rtol 1e-8, atol 1e-11, the default settings of
+    ``simulate``'s sensitivity solve, which gives the fit's Jacobian (``jacobian_adjoint``). On
+    the three fits of docs/identification.md this gave the estimates of ``gradient_solver``
+    settings (Lawson–Tsit5 at 1e-12 with diffrax's discrete derivatives) to 1e-8 in 16–30 % less
+    time. Otherwise (LuGre, ideal joints; not measured) ``gradient_solver``."""
+    if mechanism.clearance_joints and recommended_solver(mechanism).method == "tsit5":
+        return SolverConfig(method="lawson-tsit5", rtol=1e-8, atol=1e-11)
+    return gradient_solver(mechanism)
+
+
 def jacobian_adjoint(mechanism, solver: SolverConfig) -> str:
     """How a fit differentiates its residuals: diffrax's discrete forward mode at exactly
-    ``gradient_solver`` settings (identification's default), where it was measured right
-    (docs/differentiation.md, "Settings for gradients"); the error-controlled forward
-    sensitivities at any other settings, where the discrete derivatives are not controlled
-    (e.g. ``--solver lawson-tsit5 --rtol 1e-8 --atol 1e-11``: the same estimates, measured in
-    docs/identification.md)."""
+    ``gradient_solver`` settings (the default of fits with LuGre friction), where it was
+    measured right (docs/differentiation.md, "Settings for gradients"); the error-controlled
+    forward sensitivities at any other settings (``default_fit_solver``'s with Coulomb-type
+    friction, or a user's), where the discrete derivatives are not controlled."""
     return "discrete-forward" if solver == gradient_solver(mechanism) else "forward"
 
 
@@ -872,11 +883,12 @@ def identify(
         t0: time at which the simulation starts from the mechanism's assembled state, s (≤ the
             first data time).
         t1: end of the simulated span, s (default the last data time); data after it are an error.
-        solver: ``SolverConfig`` or name; default ``jaxclear.gradient_solver(mechanism)``
-            (settings whose derivatives match converged finite differences). At other settings
-            the Jacobian comes from the error-controlled sensitivities (``simulate``'s
-            ``adjoint="forward"``), right at ordinary tolerances too: Lawson–Tsit5 at rtol 1e-8,
-            atol 1e-11 gave the same estimates to 1e-8 in less time (docs/identification.md).
+        solver: ``SolverConfig`` or name; default ``default_fit_solver(mechanism)``: with
+            Coulomb-type friction Lawson–Tsit5 at rtol 1e-8, atol 1e-11, the Jacobian from the
+            error-controlled sensitivities (``simulate``'s ``adjoint="forward"``); otherwise
+            ``jaxclear.gradient_solver(mechanism)``, whose discrete derivatives match converged
+            finite differences. At any settings but ``gradient_solver``'s the Jacobian comes from
+            the sensitivities.
         settings: ``FitSettings``: the growing windows (``horizons``), the global scan
             (``scan_points``) and the optimiser (``max_iterations``, ``tolerance``).
         progress: print a progress bar (tqdm) over the fit's evaluations: per window, the scan's
@@ -900,7 +912,7 @@ def identify(
             f"scan_points=16, max_iterations=20, tolerance=1e-6); got {type(settings).__name__}."
         )
     specs, t_end = check_identification(mechanism, data, parameters, t0, t1)
-    config = gradient_solver(mechanism) if solver is None else solver_config(solver, mechanism)
+    config = default_fit_solver(mechanism) if solver is None else solver_config(solver, mechanism)
     if settings.horizons is None:
         horizons, window_note = _automatic_windows(mechanism, data, specs, config, t0, t_end)
     else:
