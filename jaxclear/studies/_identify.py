@@ -132,7 +132,7 @@ def default_fit_solver(mechanism) -> SolverConfig:
     (Coulomb-type friction): Lawson–Tsit5 at rtol 1e-8, atol 1e-11, the default settings of
     ``simulate``'s sensitivity solve, which gives the fit's Jacobian (``jacobian_adjoint``). On
     the three fits of docs/identification.md this gave the estimates of ``gradient_solver``
-    settings (Lawson–Tsit5 at 1e-12 with diffrax's discrete derivatives) to 1e-8 in 16–30 % less
+    settings (Lawson–Tsit5 at 1e-12 with diffrax's discrete derivatives) to 2e-8 in 16–38 % less
     time. Otherwise (LuGre, ideal joints; not measured) ``gradient_solver``."""
     if mechanism.clearance_joints and recommended_solver(mechanism).method == "tsit5":
         return SolverConfig(method="lawson-tsit5", rtol=1e-8, atol=1e-11)
