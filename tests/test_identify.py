@@ -232,6 +232,18 @@ def test_fit_short_of_the_noise_level_exits_3(quick_data, config, tmp_path, caps
         assert (out / name).is_file()
 
 
+def test_fit_takes_solver_settings_given_without_a_method(quick_data, config, tmp_path, capsys):
+    """``--max-steps`` (or ``--rtol``/``--atol``) without ``--solver`` is used, not dropped for
+    the fit's default settings (before, only ``--solver`` switched them): with 10 steps every
+    scanned point fails and the command says so, exit 1."""
+    path, _ = quick_data
+    argv = quick_fit_argv(path, config, tmp_path / "fit", "--max-steps", "10")
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(argv)
+    assert exit_info.value.code == 1
+    assert "every point of the global scan failed" in capsys.readouterr().err
+
+
 def test_noise_level_bound():
     """The success threshold: ``NOISE_LEVEL_LOSS`` for the usual hundreds of residuals, the
     chi-square bound (once in a million at the noise level) for a few."""

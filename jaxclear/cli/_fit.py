@@ -317,7 +317,10 @@ def _fit(args: argparse.Namespace, argv: list[str], staged: list[StagedOutput]) 
     except jaxclear.ModelError as e:
         raise UsageError(one_line(e)) from None
 
-    user_solver = settings.sources.get(("solver", "method"), "default") != "default"
+    user_solver = any(  # any solver setting given: the fit runs the settings asked for
+        settings.sources.get(("solver", key), "default") != "default"
+        for key in ("method", "rtol", "atol", "max_steps")
+    )
     solver = solver_for(settings, mechanism) if user_solver else None
     quiet = args.quiet
     say = (lambda *a, **k: None) if quiet else print
