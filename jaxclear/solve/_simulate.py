@@ -599,7 +599,9 @@ def simulate(
             (diffrax's differentiation of the solver's steps, error not controlled) or any
             ``diffrax.AbstractAdjoint``. The sensitivity solve runs at ``solver.sensitivity_rtol``
             (default ``min(rtol, 1e-8)``: derivatives over a revolution match converged central
-            differences, docs/differentiation.md). No effect on the values.
+            differences, docs/differentiation.md) with ``solver.sensitivity_method`` (default the
+            solver's, Tsit5 as Lawson–Tsit5 where there are impact memories). No effect on the
+            values.
         statistics_start: start time, s, of the window over which ``Trajectory.extremes`` (peak
             forces, penetrations and accelerations, torque extremes and RMS) are taken from the
             solver's steps; default ``t0``. Use it to leave out the start-up revolutions.
