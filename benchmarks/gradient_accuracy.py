@@ -33,7 +33,8 @@ samples inside it). Printed per window and parameter:
   ``SolverConfig.sensitivity_rtol``, ``sensitivity_method``)
   unless ``--no-default``;
 - with ``--rtols``, reverse mode's errors at those tolerances (solver ``"auto"``'s method or
-  ``--method``, atol = 1e-3 rtol, the sensitivity solve at the same rtol and method), and for every setting the relative error of the loss itself against the reference
+  ``--method``, atol = 1e-3 rtol, the sensitivity solve at the same rtol and method), and for
+  every setting the relative error of the loss itself against the reference
   solve: how far the derivative's error follows the solution's own.
 
 ``--checkpoints 30,300,1000,default,199999`` instead compares reverse-mode gradients of the first
@@ -203,21 +204,7 @@ def main():
         checkpoint_study(case, args.checkpoints, windows[0], jax, jnp, jaxclear, ts, target)
         return
     for case in args.cases.split(","):
-        run_case(
-            case,
-            jax,
-            jnp,
-            jaxclear,
-            windows,
-            steps,
-            ts,
-            weights,
-            target,
-            args.no_default,
-            args.only_default,
-            [float(r) for r in args.rtols.split(",") if r],
-            args.method,
-        )
+        run_case(case, args, jax, jnp, jaxclear, windows, steps, ts, weights, target)
 
 
 def variation_study(case, rtol, jax, jnp, jaxclear, ts, weights, target, windows):
@@ -285,21 +272,10 @@ def checkpoint_study(case, counts, window, jax, jnp, jaxclear, ts, target):
         )
 
 
-def run_case(
-    case,
-    jax,
-    jnp,
-    jaxclear,
-    windows,
-    steps,
-    ts,
-    weights,
-    target,
-    no_default,
-    only_default=False,
-    rtols=(),
-    method="",
-):
+def run_case(case, args, jax, jnp, jaxclear, windows, steps, ts, weights, target):
+    """One case: the central differences, then the variants ``args`` asks for (``--no-default``,
+    ``--only-default``, ``--rtols``, ``--method``)."""
+    rtols = [float(r) for r in args.rtols.split(",") if r]
     joints, friction = CASES[case]
     p0 = {k: jnp.asarray(v) for k, v in NOMINAL[friction].items()}
     names = list(p0)
@@ -339,17 +315,17 @@ def run_case(
             )
         fd[name] = np.array(rows)
 
-    variants = [] if only_default else [("gradient_solver", config, config.reverse_adjoint())]
-    if not no_default:
+    variants = [] if args.only_default else [("gradient_solver", config, config.reverse_adjoint())]
+    if not args.no_default:
         variants.append(("default", "auto", "reverse"))
     auto = jaxclear.recommended_solver(build(case, p0))
-    if method:
-        auto = auto.replace(method=method)
+    if args.method:
+        auto = auto.replace(method=args.method)
     for rtol in rtols:
         solver = auto.replace(
             rtol=rtol, atol=1e-3 * rtol, sensitivity_rtol=rtol, sensitivity_method=auto.method
         )
-        variants.append((f"{method or 'rtol'} {rtol:g}", solver, "reverse"))
+        variants.append((f"{args.method or 'rtol'} {rtol:g}", solver, "reverse"))
     ad = {}
     loss_error = {}  # label -> (windows,) relative error of the loss itself against the reference
     for label, solver, reverse_adjoint in variants:
