@@ -6,6 +6,7 @@ part as ideal revolute joints whose journal sits at the given initial eccentrici
 default). Velocities: the least-norm correction of the guessed q̇ that satisfies Φ_q q̇ = −Φ_t.
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -65,14 +66,9 @@ def _least_norm_solve(jac, rhs):
     return jac.T @ jnp.linalg.solve(jjt + eps * jnp.eye(jjt.shape[0], dtype=jac.dtype), rhs)
 
 
-def assemble_state(mechanism, t0=0.0):
-    """Pure JAX assembly (jit/vmap/grad friendly).
-
-    Returns:
-        (q0, qd0, position_residual, velocity_residual): residuals are max-abs norms.
-    """
-    t0 = jnp.asarray(t0, dtype=float)
-    q, qd = mechanism.initial_guess()
+def _newton_positions(mechanism, t0):
+    """q with Φ(q, t0) = 0 by damped least-norm Newton from the bodies' initial guesses."""
+    q = mechanism.initial_guess()[0]
 
     def residual(q):
         return jnp.sum(assembly_constraints(mechanism, q, t0) ** 2)
@@ -88,7 +84,63 @@ def assemble_state(mechanism, t0=0.0):
         best = jnp.argmin(norms)
         return jnp.where(norms[best] < residual(q), candidates[best], q)
 
-    q = jax.lax.fori_loop(0, NEWTON_ITERATIONS, step, q)
+    return jax.lax.fori_loop(0, NEWTON_ITERATIONS, step, q)
+
+
+@eqx.filter_custom_jvp
+def assembled_positions(mechanism, t0):
+    """The assembled q0 (``_newton_positions``), differentiated by the implicit function theorem.
+
+    Differentiating the Newton loop itself gives the tangent of the iterates it happened to take:
+    the damped step's choice of length and its "never worse" test freeze q, and with it the
+    tangent, at the last accepted step, so dq0/dθ depended on rounding (on the benchmark
+    slider–crank, d q0 / d(a joint point) came out 1.0 or 0.5 for the same parameters 1e-18
+    apart, and along a body's initial guess, whose true effect on a determined mechanism is nil,
+    0.5 instead of ~0; the sensitivity solve then spent 16x the steps integrating that noise).
+    At the solution Φ(θ, q0, t0) = 0, so
+
+        Φ_q dq0 = −(Φ_θ dθ + Φ_t dt0),   dq0 = −Φ_q⁺ (Φ_θ dθ + Φ_t dt0) + (I − Φ_q⁺ Φ_q) dg,
+
+    with Φ_q⁺ the least-norm solve of the Newton steps and dg the tangent of the initial guess:
+    the least-norm steps leave the guess's component in the null space of Φ_q where it was (for a
+    determined mechanism Φ_q has full column rank and that term vanishes).
+    """
+    return _newton_positions(mechanism, t0)
+
+
+@assembled_positions.def_jvp
+def _assembled_positions_jvp(primals, tangents):
+    mechanism, t0 = primals
+    d_mechanism, d_t0 = tangents
+    q = _newton_positions(mechanism, t0)
+    dynamic, static = eqx.partition(mechanism, eqx.is_inexact_array)
+    d_dynamic = jax.tree_util.tree_map(
+        lambda x, d: jnp.zeros_like(x) if d is None else d, dynamic, d_mechanism
+    )
+    d_t0 = jnp.zeros_like(t0) if d_t0 is None else d_t0
+    jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
+    _, d_phi = jax.jvp(
+        lambda d, t: assembly_constraints(eqx.combine(d, static), q, t),
+        (dynamic, t0),
+        (d_dynamic, d_t0),
+    )
+    _, d_guess = jax.jvp(
+        lambda d: eqx.combine(d, static).initial_guess()[0], (dynamic,), (d_dynamic,)
+    )
+    dq = d_guess - _least_norm_solve(jac, d_phi + jac @ d_guess)
+    return q, dq
+
+
+def assemble_state(mechanism, t0=0.0):
+    """Pure JAX assembly (jit/vmap/grad friendly; q0's derivatives from the implicit function
+    theorem, ``assembled_positions``).
+
+    Returns:
+        (q0, qd0, position_residual, velocity_residual): residuals are max-abs norms.
+    """
+    t0 = jnp.asarray(t0, dtype=float)
+    qd = mechanism.initial_guess()[1]
+    q = assembled_positions(mechanism, t0)
     phi = assembly_constraints(mechanism, q, t0)
     jac = jax.jacfwd(assembly_constraints, argnums=1)(mechanism, q, t0)
     phi_t = jax.jacfwd(assembly_constraints, argnums=2)(mechanism, q, t0)
