@@ -19,9 +19,11 @@ solves whose journals start at different points of their clearance circles (star
 others at ``start_spread`` × c in directions spread round the circle), which smooths the surface
 enough for gradient descent.
 
-Method: Adam (optax) on the unconstrained variables of ``_parameter_space`` with gradients by
-reverse-mode differentiation through the vectorised solves, at ``jaxclear.gradient_solver``
-settings; the best iterate is kept. Then an independent check: the initial and the optimised
+Method: Adam (optax) on the unconstrained variables of ``_parameter_space`` with gradients
+through the vectorised solves (forward mode up to ``FORWARD_MODE_PARAMETERS`` parameters, reverse
+mode above): by default at ``jaxclear.gradient_solver`` settings with diffrax's discrete
+derivatives, at any other settings with ``simulate``'s error-controlled sensitivities
+(``optimization_adjoint``); the best iterate is kept. Then an independent check: the initial and the optimised
 designs are simulated again, without differentiation, at a tighter tolerance (``verify_solver``),
 and the improvement is reported from those runs.
 """
@@ -48,6 +50,21 @@ from ..solve._solver import SolverConfig, gradient_solver, recommended_solver, s
 from ..solve._startup import ideal_mechanism
 from ._parameter_space import FitParameter, ParameterSpace, parse_parameters
 
+
+def optimization_adjoint(mechanism, solver: SolverConfig, mode: str) -> str:
+    """How ``optimize`` differentiates (``mode``: ``"forward"`` or ``"reverse"``): diffrax's
+    discrete derivatives at exactly ``gradient_solver`` settings (the default), where they were
+    measured right (docs/differentiation.md, "Settings for gradients"); the error-controlled
+    sensitivities at any other settings, where the discrete derivatives are not controlled (at
+    rtol 1e-6 they were off by up to 107 % over 3 ms, docs/differentiation.md).
+
+    The default stays ``gradient_solver``: on notebook 08's design (``rod_com_x``, one
+    revolution) the sensitivities cost more (``python benchmarks/optimize_defaults.py``,
+    docs/identification.md, "Design optimisation")."""
+    discrete = solver == gradient_solver(mechanism)
+    return f"discrete-{mode}" if discrete else mode
+
+
 FORWARD_MODE_PARAMETERS = 4
 """Up to this many design parameters the gradient is taken in forward mode (cost ≈ 1 + 0.5 p
 solves, cheaper to compile than reverse mode); above, in reverse mode."""
@@ -65,7 +82,7 @@ class OptimizationResult:
     Attributes:
         initial, values: ``{name: value}`` before and after.
         objective: name of the objective (or the callable's name).
-        history: per iteration ``{"iteration", "objective", "values"}`` (gradient-solver values).
+        history: per iteration ``{"iteration", "objective", "values"}`` (from the differentiated solves).
         verified_initial, verified_final: the objective of the initial and optimised designs from
             the independent verification runs (``verify_solver``).
         improvement: (verified_initial − verified_final) / |verified_initial|.
@@ -209,24 +226,24 @@ def _averaged(
     return jnp.mean(jax.vmap(one)(offsets))
 
 
-# At ``gradient_solver`` settings (the default) diffrax's discrete derivatives are right and
-# cheaper than the error-controlled sensitivities (docs/differentiation.md).
 @eqx.filter_jit
 def _averaged_and_gradient(
     mechanism, specs, objective, solver, u, offsets, t1, num_points, start, mode
 ):
-    """(mean objective, its gradient in u) by forward (``mode="forward"``) or reverse mode."""
+    """(mean objective, its gradient in u) by forward (``mode="forward"``) or reverse mode, with
+    ``optimization_adjoint``'s derivatives: both from the same (differentiated) solves."""
     args = (mechanism, specs, objective, solver)
     rest = (offsets, t1, num_points, start)
+    adjoint = optimization_adjoint(mechanism, solver, mode)
     if mode == "forward":
 
         def f(u):
-            value = _averaged(*args, u, *rest, adjoint="discrete-forward")
+            value = _averaged(*args, u, *rest, adjoint=adjoint)
             return value, value
 
         grad, value = jax.jacfwd(f, has_aux=True)(u)
         return value, grad
-    return jax.value_and_grad(lambda u: _averaged(*args, u, *rest, adjoint="discrete-reverse"))(u)
+    return jax.value_and_grad(lambda u: _averaged(*args, u, *rest, adjoint=adjoint))(u)
 
 
 def optimize(
@@ -258,7 +275,9 @@ def optimize(
             (leave out the start-up). num_points: output points (the RMS objectives' grid).
         starts: perturbed starts averaged (1: only the centred start). start_spread: their offset,
             fraction of each joint's clearance.
-        solver: settings of the differentiated solves (default ``jaxclear.gradient_solver``).
+        solver: settings of the differentiated solves (default ``jaxclear.gradient_solver``,
+            differentiated by diffrax's discrete derivatives; any other settings by ``simulate``'s
+            error-controlled sensitivities, ``optimization_adjoint``).
         verify_solver: settings of the independent check (default: the recommended method at
             ``VERIFY_RTOL`` or the optimisation's rtol, whichever is tighter).
         learning_rate: Adam step size in the unconstrained variables (≈ relative change per step
