@@ -26,28 +26,19 @@ Public API only; prints figures, asserts nothing.
 """
 
 import argparse
-import importlib.metadata
-import subprocess
+import os
+import sys
 import time
 
 import jaxclear
 from jaxclear.contact import LankaraniNikravesh
 from jaxclear.friction import ModifiedCoulomb
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from gradient_defaults import header  # noqa: E402  (versions and commit)
+
 RPM = 5000.0
 PERIOD = 60.0 / RPM
-
-
-def header() -> str:
-    commit = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True
-    ).stdout.strip()
-    dirty = subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True).stdout
-    return (
-        f"jaxclear {jaxclear.__version__}, jax {importlib.metadata.version('jax')}, diffrax "
-        f"{importlib.metadata.version('diffrax')}, commit {commit}"
-        f"{' (uncommitted changes)' if dirty.strip() else ''}"
-    )
 
 
 def main():

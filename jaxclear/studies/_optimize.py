@@ -23,9 +23,9 @@ Method: Adam (optax) on the unconstrained variables of ``_parameter_space`` with
 through the vectorised solves (forward mode up to ``FORWARD_MODE_PARAMETERS`` parameters, reverse
 mode above): by default at ``jaxclear.gradient_solver`` settings with diffrax's discrete
 derivatives, at any other settings with ``simulate``'s error-controlled sensitivities
-(``optimization_adjoint``); the best iterate is kept. Then an independent check: the initial and the optimised
-designs are simulated again, without differentiation, at a tighter tolerance (``verify_solver``),
-and the improvement is reported from those runs.
+(``optimization_adjoint``); the best iterate is kept. Then an independent check: the initial and
+the optimised designs are simulated again, without differentiation, at a tighter tolerance
+(``verify_solver``), and the improvement is reported from those runs.
 """
 
 import dataclasses
@@ -59,7 +59,9 @@ def optimization_adjoint(mechanism, solver: SolverConfig, mode: str) -> str:
     rtol 1e-6 they were off by up to 107 % over 3 ms, docs/differentiation.md).
 
     The default stays ``gradient_solver``: on notebook 08's design (``rod_com_x``, one
-    revolution) the sensitivities cost more (``python benchmarks/optimize_defaults.py``,
+    revolution, 4 starts) two iterates at ``simulate``'s settings took 66 s compiled against
+    17.6 s for all 16 at ``gradient_solver``'s, and one start's sensitivity solve ran out of
+    steps in a contact phase (``python benchmarks/optimize_defaults.py``,
     docs/identification.md, "Design optimisation")."""
     discrete = solver == gradient_solver(mechanism)
     return f"discrete-{mode}" if discrete else mode
@@ -82,7 +84,8 @@ class OptimizationResult:
     Attributes:
         initial, values: ``{name: value}`` before and after.
         objective: name of the objective (or the callable's name).
-        history: per iteration ``{"iteration", "objective", "values"}`` (from the differentiated solves).
+        history: per iteration ``{"iteration", "objective", "values"}`` (objectives from the
+            differentiated solves).
         verified_initial, verified_final: the objective of the initial and optimised designs from
             the independent verification runs (``verify_solver``).
         improvement: (verified_initial − verified_final) / |verified_initial|.
