@@ -208,7 +208,8 @@ ASSEMBLY_DERIVATIVE_RTOL = 1e-6
 GUESS_DERIVATIVE_ATOL = 1e-6
 """dq0/d(initial guess) on a determined mechanism: nil but for the least-norm solve's
 regularisation ε = 1e-9 relative (``RANK_TOLERANCE``; measured up to 4e-7 on the slider–crank)."""
-ROUNDED_COM_X = -0.04 + 0.08 * float(jax.nn.sigmoid(jnp.log(0.0340446 / 0.0459554)))
+COM_X = -5.9554e-3  # m: the second iterate of notebook 08's optimisation, rod_com_x in ±40 mm
+ROUNDED_COM_X = -0.04 + 0.08 * float(jax.nn.sigmoid(jnp.log((COM_X + 0.04) / (0.04 - COM_X))))
 """m: rod_com_x = −5.9554 mm as a bounded fit variable gives it (through a sigmoid, so rounded
 otherwise than the literal): there, differentiating the damped Newton loop itself gave
 dq0/d(rod guess x) = 0.5 instead of ~0 and dq0/d(joint point x) half the true value (a step
