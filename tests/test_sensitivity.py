@@ -226,3 +226,51 @@ def test_gradient_with_more_scalars_than_one_solve_takes():
         print(f"d x / d y0[{index}]: grad {grad[index]}, central differences {fds}")
         assert abs(fds[0] - fds[1]) <= 1e-4 * abs(fds[1])  # converged
         assert abs(grad[index] - fds[1]) <= STATE_RTOL * abs(fds[1])
+
+
+ROD_COM_X = -5.9554e-3
+"""m: the rod's centre of mass along its axis, a parameter that moves 7 leaves of the
+mechanism (the rod's joint points, the clearance joint's journal)."""
+
+
+def _design(u, t1=Y0_WINDOW, solver="auto"):
+    """Slider x and the rod's angle at ``t1`` along u = (rod_com_x offset, clearance offset)."""
+    m = jaxclear.with_parameters(
+        _mechanism(CLEARANCE), {"rod_com_x": ROD_COM_X + u[0], "B.clearance": CLEARANCE + u[1]}
+    )
+    return jaxclear.simulate(m, t1, num_points=2, solver=solver).q[-1, jnp.array([6, 5])]
+
+
+def test_forward_mode_integrates_one_tangent_per_direction():
+    """``jax.jacfwd`` integrates its k directions (here 2) in one augmented solve, not every
+    scalar they touch (8; ``benchmarks/forward_directions.py`` measures the cost): along
+    rod_com_x, which moves 7 leaves, the derivative is the converged central difference
+    (measured 5e-5 apart)."""
+    u0 = jnp.zeros(2)
+    traced = jax.jit(jax.jacfwd(_design)).trace(u0)
+    # the augmented state [y, S_1, ..., S_k] of the one solve: k = 2 tangents (before, 8)
+    n = _mechanism(CLEARANCE).state_size
+    assert f"f64[{3 * n}]" in str(traced.jaxpr) and f"f64[{9 * n}]" not in str(traced.jaxpr)
+    jac = np.asarray(traced.lower().compile()(u0))
+    tight = jax.jit(lambda u: _design(u, solver=jaxclear.gradient_solver(_mechanism(CLEARANCE))))
+    v = np.array([1.0, 0.0])
+    fds = [np.asarray((tight(u0 + h * v) - tight(u0 - h * v)) / (2 * h)) for h in (1e-5, 1e-6)]
+    print(f"d/d rod_com_x: jacfwd {jac[:, 0]}, central differences {fds}")
+    np.testing.assert_allclose(fds[0], fds[1], rtol=1e-4)  # converged
+    np.testing.assert_allclose(jac[:, 0], fds[1], rtol=STATE_RTOL)
+
+
+@pytest.mark.slow  # two more compilations (~45 s)
+def test_forward_mode_directions_under_vmap_and_beyond_the_scalars():
+    """Under a ``jax.vmap`` inside ``jax.jacfwd`` (each member solves along every scalar it
+    perturbs and contracts, so the directions share that solve, as ``jaxclear.optimize`` nests
+    them) and with more directions than scalars (contracted from the scalars' tangents), the
+    derivatives are those of one member's ``jax.jacfwd``."""
+    u0 = jnp.zeros(2)
+    jacobian = jax.jit(jax.jacfwd(_design))
+    members = jnp.stack([u0, jnp.array([1e-4, 0.0])])
+    nested = np.asarray(jax.jit(jax.jacfwd(jax.vmap(_design)))(members))
+    for k in range(2):
+        np.testing.assert_allclose(nested[k, :, k], jacobian(members[k]), rtol=1e-6)
+    many = jax.jit(jax.jacfwd(lambda w: _design(jnp.stack([0.0, jnp.sum(w)]))))(jnp.zeros(3))
+    np.testing.assert_allclose(many, np.repeat(jacobian(u0)[:, 1:], 3, axis=1), rtol=1e-6)

@@ -114,6 +114,17 @@ def _has_forward_mode_tracer(tree) -> bool:
     return any(issubclass(k, ad.JVPTracer) for k in _tracer_kinds(tree))
 
 
+def _is_differentiated(tree) -> bool:
+    """True if an array leaf is traced by a differentiation (``jax.jvp``, ``jax.grad``,
+    ``jax.linearize``), seen through ``vmap``."""
+    linearize = getattr(ad, "LinearizeTracer", None)
+    kinds = _tracer_kinds(tree)
+    return any(
+        issubclass(k, ad.JVPTracer) or (linearize is not None and issubclass(k, linearize))
+        for k in kinds
+    )
+
+
 def _auto_mode(tree) -> str:
     """``adjoint="auto"``'s sensitivity mode: ``"forward"`` under ``jax.jvp``/``jax.jacfwd``,
     ``"reverse"`` under ``jax.grad``/``jax.vjp``/``jax.jacrev``, and ``"either"`` when the leaves
@@ -369,6 +380,108 @@ def differentiable_simulate(
         out = [None if s is None else jnp.tensordot(along, s, axes=1) for s in sens]
         return traj, _with_integer_zeros(traj, out)
 
+    def solve_along(primals, dirs, flags, y0_flag, d_def, static_part):
+        """(the trajectory's arrays, its tangents' inexact leaves with a leading axis k) of one
+        augmented solve along k directions: ``dirs``, the tangents of the perturbed leaves (and
+        y0 last), each with a leading axis k; more than ``REVERSE_SENSITIVITY_MAX`` in blocks of
+        that size (``jax.lax.map``, the last padded with zero directions), the trajectory the first
+        block's. The trajectory's static fields go to ``static_part["traj"]``."""
+        k = dirs[0].shape[0]
+
+        def one(dirs):
+            it = iter(dirs)
+            full = [next(it) if f else None for f in flags]
+            directions = jax.tree_util.tree_unflatten(d_def, full)
+            dy0 = dirs[-1] if y0_flag else None
+            traj, tangent = solve_with_tangents(
+                primals[0], primals[1], directions, dy0, *primals[2:]
+            )
+            arrays, static_part["traj"] = eqx.partition(traj, eqx.is_array)
+            return arrays, _inexact_leaves(tangent)
+
+        size = REVERSE_SENSITIVITY_MAX
+        if k <= size:
+            return one(dirs)
+        blocks = -(-k // size)
+        padded = [
+            jnp.reshape(
+                jnp.concatenate([u, jnp.zeros((blocks * size - k,) + u.shape[1:], u.dtype)]),
+                (blocks, size) + u.shape[1:],
+            )
+            for u in dirs
+        ]
+        arrays, tangents = jax.lax.map(one, padded)
+        arrays = jax.tree_util.tree_map(lambda x: x[0], arrays)
+        tangents = [
+            None if t is None else jnp.reshape(t, (blocks * size,) + t.shape[2:])[:k]
+            for t in tangents
+        ]
+        return arrays, tangents
+
+    def merged_jvp(primals, tangents):
+        """The augmented solve along the incoming tangents themselves: a
+        ``jax.custom_batching.custom_vmap`` whose rule, where only the tangents are batched (the
+        directions of ``jax.jacfwd``), integrates its k directions in one solve (min(k, p): along
+        the p perturbed scalars and contracted, where k > p), so the cost follows the number of
+        directions, not of the leaves they touch (a length that moves 7 leaves costs one tangent,
+        not 7). Where the primal values are batched too (an inner ``jax.vmap``), each lane solves
+        along every perturbed scalar and contracts (``jvp_contracted``), so that an outer
+        ``jax.jacfwd`` shares that solve."""
+        values, d_def, d_leaves, flags, y0_flag, p = perturbed(primals, tangents)
+        chosen = [d for d, f in zip(d_leaves, flags) if f] + ([tangents[1]] if y0_flag else [])
+        static_part = {}
+        setting = dict(flags=flags, y0_flag=y0_flag, d_def=d_def, static_part=static_part)
+
+        def contracted(primals, dirs):
+            # along the p perturbed scalars, contracted with the k directions (k, ...)
+            units = _unit_directions(
+                values + ([primals[1]] if y0_flag else []), flags + [y0_flag], p
+            )
+            arrays, sens = solve_along(primals, [u for u in units if u is not None], **setting)
+            k = dirs[0].shape[0]
+            along = jnp.concatenate([jnp.reshape(d, (k, -1)) for d in dirs], axis=1)
+            return arrays, [None if s is None else jnp.tensordot(along, s, axes=1) for s in sens]
+
+        def lane(primals, chosen):
+            # one lane of a batch of primal values: as jvp_contracted up to
+            # REVERSE_SENSITIVITY_MAX perturbed scalars, else along its own tangent
+            dirs = [c[None] for c in chosen]
+            solve = contracted if p <= REVERSE_SENSITIVITY_MAX else partial_solve
+            arrays, out = solve(primals, dirs)
+            return arrays, [None if t is None else t[0] for t in out]
+
+        def partial_solve(primals, dirs):
+            return solve_along(primals, dirs, **setting)
+
+        @jax.custom_batching.custom_vmap
+        def along(primals, chosen):
+            arrays, out = solve_along(primals, [c[None] for c in chosen], **setting)
+            return arrays, [None if t is None else t[0] for t in out]
+
+        @along.def_vmap
+        def _(k, in_batched, primals, chosen):
+            primal_batched, chosen_batched = in_batched
+            if any(jax.tree_util.tree_leaves(primal_batched)):
+                in_axes = (
+                    jax.tree_util.tree_map(lambda b: 0 if b else None, primal_batched),
+                    [0 if b else None for b in chosen_batched],
+                )
+                out = jax.vmap(lane, in_axes=in_axes)(primals, chosen)
+                return out, jax.tree_util.tree_map(lambda _: True, out)
+            dirs = [
+                c if b else jnp.broadcast_to(c, (k,) + c.shape)
+                for c, b in zip(chosen, chosen_batched)
+            ]
+            arrays, out = (partial_solve if k <= p else contracted)(primals, dirs)
+            return (arrays, out), (
+                jax.tree_util.tree_map(lambda _: False, arrays),
+                jax.tree_util.tree_map(lambda _: True, out),
+            )
+
+        arrays, out = along(primals, chosen)
+        traj = eqx.combine(arrays, static_part["traj"])
+        return traj, _with_integer_zeros(traj, out)
+
     if mode == "forward":
         fn = jax.custom_jvp(primal)
 
@@ -377,6 +490,10 @@ def differentiable_simulate(
             d_dynamic, d_y0 = tangents[:2]
             _check_no_time_tangents(tangents[2:])
             p = perturbed(primals, tangents)[-1]
+            if p > 0 and not _is_differentiated(primals):
+                return merged_jvp(primals, tangents)
+            # under an outer differentiation (the rule's primal values are its tracers: a
+            # custom_vmap is not transposed), as before the merged rule
             if p <= REVERSE_SENSITIVITY_MAX:
                 # one augmented solve along every perturbed scalar, shared by jax.jacfwd's
                 # directions (FORWARD_MERGED in docs/differentiation.md)
