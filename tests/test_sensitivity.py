@@ -80,8 +80,9 @@ def test_default_settings_give_the_solution_derivative(derivatives, window):
     fine = _central(d["reference"], t1, 1e-6)
     coarse = [_central(d["reference"], t1, r) for r in (1e-4, 1e-5)]
     print(f"{window} s: forward {forward}, reverse {reverse}, FD 1e-4/1e-5/1e-6 {coarse} {fine}")
-    # the two modes run the same augmented solve (along every perturbed scalar) and return its
-    # trajectory, so a loss of the outputs pairs them with their own tangents in either mode
+    # one perturbed scalar (the journal radius): the two modes run the same augmented solve
+    # (forward mode's one direction, reverse mode's one scalar) and return its trajectory, so a
+    # loss of the outputs pairs them with their own tangents in either mode
     # (before, forward mode ran one augmented solve per direction and returned the plain
     # solve's trajectory: other steps, the peak force's derivatives 0.37 % / 1.0 % apart at
     # 0.3 / 1 ms; now they agree to 1e-16)

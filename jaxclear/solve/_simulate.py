@@ -90,7 +90,8 @@ scalar (a leaf of the mechanism, or the whole ``y0``, counts with its size), at 
 one augmented solve: with more, the tangents are integrated in blocks of this size, one augmented
 solve after another (``jax.lax.map``; each block's solve takes its own steps), so the cost grows
 with p but the derivative stays error-controlled (docs/differentiation.md, "Many parameters").
-Forward mode (``jax.jvp``, ``jax.jacfwd``) shares one solve among its directions up to this many."""
+Forward mode (``jax.jacfwd``) integrates up to this many of its directions in one solve, more in
+blocks of this size."""
 
 
 def _tracer_kinds(tree) -> set[type]:
@@ -297,8 +298,8 @@ def differentiable_simulate(
 ) -> Trajectory:
     """``_simulate_core`` whose derivatives come from the error-controlled sensitivity solve
     (``jaxclear.solve._sensitivity``): a ``jax.custom_jvp`` for ``mode="forward"`` (``jax.jvp``,
-    ``jax.jacfwd``: up to ``REVERSE_SENSITIVITY_MAX`` perturbed scalars one solve along all of
-    them, shared by jacfwd's directions; above, one tangent per jvp), a ``jax.custom_vjp`` for
+    ``jax.jacfwd``: one solve along the incoming directions, ``merged_jvp``; under an outer
+    differentiation along every perturbed scalar, contracted), a ``jax.custom_vjp`` for
     ``mode="reverse"`` (``jax.grad``,
     ``jax.vjp``, ``jax.jacrev``: the forward pass integrates one tangent per perturbed scalar of the
     mechanism and y0, the backward pass contracts them with the cotangent). Without
