@@ -548,45 +548,19 @@ def differentiable_simulate(
             return primal(dynamic, y0_value, *times), None
         units = _unit_directions(values + ([y0_value] if y0_flag else []), flags + [y0_flag], p)
         layout.update(shapes=[v.shape for v in values], flags=flags, y0_flag=y0_flag, p=p)
-        if p <= REVERSE_SENSITIVITY_MAX:
-            directions = jax.tree_util.tree_unflatten(d_def, units[: len(values)])
-            dy0 = units[-1] if y0_flag else None
-            traj, tangent = solve_with_tangents(dynamic, y0_value, directions, dy0, *times)
-            return traj, _inexact_leaves(tangent)
-        return _blocked_tangents(units, len(values), d_def, y0_flag, dynamic, y0_value, times)
-
-    def _blocked_tangents(units, n_values, d_def, y0_flag, dynamic, y0_value, times):
-        """More perturbed scalars than one augmented solve takes: their unit directions in blocks
-        of ``REVERSE_SENSITIVITY_MAX`` (the last padded with zero directions, whose tangents are
-        zero and whose weight in the error norm is atol), one augmented solve per block
-        (``jax.lax.map``: one compiled solve, run once per block). The trajectory returned is
-        the first block's; every block's tangents are those of its own solve."""
-        size = REVERSE_SENSITIVITY_MAX
-        p = layout["p"]
-        blocks = -(-p // size)
-
-        def blocked(u):
-            if u is None:
-                return None
-            padded = jnp.concatenate([u, jnp.zeros((blocks * size - p,) + u.shape[1:], u.dtype)])
-            return jnp.reshape(padded, (blocks, size) + u.shape[1:])
-
-        static_part = {}  # the trajectory's non-array fields, filled when lax.map traces block
-
-        def block(dirs):
-            directions = jax.tree_util.tree_unflatten(d_def, dirs[:n_values])
-            dy0 = dirs[-1] if y0_flag else None
-            traj, tangent = solve_with_tangents(dynamic, y0_value, directions, dy0, *times)
-            arrays, static_part["traj"] = eqx.partition(traj, eqx.is_array)
-            return arrays, _inexact_leaves(tangent)
-
-        arrays, tangents = jax.lax.map(block, [blocked(u) for u in units])
-        traj = eqx.combine(jax.tree_util.tree_map(lambda x: x[0], arrays), static_part["traj"])
-        tangents = [
-            None if t is None else jnp.reshape(t, (blocks * size,) + t.shape[2:])[:p]
-            for t in tangents
-        ]
-        return traj, tangents
+        # one augmented solve, or blocks of REVERSE_SENSITIVITY_MAX (the last padded with zero
+        # directions, whose tangents are zero and whose weight in the error norm is atol), the
+        # trajectory the first block's
+        static_part = {}
+        arrays, tangents = solve_along(
+            (dynamic, y0_value, *times),
+            [u for u in units if u is not None],
+            flags,
+            y0_flag,
+            d_def,
+            static_part,
+        )
+        return eqx.combine(arrays, static_part["traj"]), tangents
 
     def bwd(residuals, cotangent):
         if residuals is None:
