@@ -256,6 +256,61 @@ def memory_offset_shift(mechanism, y) -> Float[Array, " N"]:
     return shift
 
 
+SLIP_RESOLUTION = 0.3
+"""Where a step meets a friction law's slip band in contact it may change the slip velocity by at
+most this fraction of the band's resolution u (``AbstractFrictionLaw.slip_transition``).
+Measured (docs/differentiation.md, "Slip reversals in contact"): d(slider x)/dc over a revolution
+of issue 22's case was −910.0 without the rule, −895.3 at 1, −900.63 at 0.3 and −900.62 at 0.1
+(converged central difference −900.1 ± 0.3 %), in 1.017×, 1.027× and 1.057× the steps."""
+
+
+def _slip_fraction(transition, v0, v1, pen0, pen1):
+    """Largest fraction of a step that keeps Δv_T within ``SLIP_RESOLUTION`` u where the step
+    meets the band |v_T| <= V in contact (``inf``: no limit)."""
+    if transition is None:
+        return jnp.asarray(jnp.inf)
+    band, width = transition
+    resolution = SLIP_RESOLUTION * width
+    change = jnp.abs(v1 - v0)
+    meets = (jnp.minimum(v0, v1) <= band) & (jnp.maximum(v0, v1) >= -band)
+    contact = (pen0 > 0) | (pen1 > 0)
+    limited = contact & meets & (change > resolution)
+    return jnp.min(jnp.where(limited, resolution / jnp.where(limited, change, 1.0), jnp.inf))
+
+
+def slip_step_fraction(mechanism, y0, y1) -> Float[Array, ""]:
+    """The largest fraction of a step from ``y0`` to ``y1`` (states in either memory form) that
+    resolves each friction law's slip reversal: where a clearance joint is in contact at either
+    end and its slip velocity meets the band where the force turns over
+    (``AbstractFrictionLaw.slip_transition``: |v_T| <= V), the step may change v_T by at most u.
+    ``inf`` where nothing limits the step; the sensitivity solve rejects a step whose fraction is
+    below 1 (``solve._sensitivity.SlipResolving``)."""
+    q0, qd0, _ = mechanism.split_state(y0)
+    q1, qd1, _ = mechanism.split_state(y1)
+    fractions = [jnp.asarray(jnp.inf)]
+    for joint in mechanism.clearance_joints:
+        transition = joint.friction_law.slip_transition(joint.smoothing)
+        if transition is not None:
+            k0 = clearance.kinematics(joint, mechanism.index, q0, qd0)
+            k1 = clearance.kinematics(joint, mechanism.index, q1, qd1)
+            fractions.append(
+                _slip_fraction(
+                    transition, k0.slip_velocity, k1.slip_velocity, k0.penetration, k1.penetration
+                )
+            )
+    for joint in mechanism.translational_clearance_joints:
+        transition = joint.friction_law.slip_transition(joint.smoothing)
+        if transition is not None:
+            k0 = translational.kinematics(joint, mechanism.index, q0, qd0)
+            k1 = translational.kinematics(joint, mechanism.index, q1, qd1)
+            fractions.append(
+                _slip_fraction(
+                    transition, k0.slip_velocity, k1.slip_velocity, k0.penetration, k1.penetration
+                )
+            )
+    return jnp.min(jnp.stack(fractions))
+
+
 def initial_state(mechanism, q0, qd0) -> Float[Array, " N"]:
     """Integrator state y0 = (q0, q̇0, internal states) from assembled coordinates."""
     internal = {}

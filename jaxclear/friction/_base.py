@@ -32,6 +32,25 @@ class AbstractFrictionLaw(eqx.Module):
         """Internal state at the start of a simulation (zeros)."""
         return jnp.zeros((self.num_states,))
 
+    def slip_transition(self, smoothing: Smoothing) -> tuple[Array, Array] | None:
+        """Where the force turns over with the slip velocity, for the sensitivity solve's steps.
+
+        A Coulomb-type law reverses the friction force, ±μ F_N, across a narrow band of slip
+        velocities; in contact the slip velocity can cross it in tens of nanoseconds. A step that
+        jumps the band without a stage inside integrates the state well enough (the force on
+        either side is right) but drops the tangents' kick, the force's jump times the crossing
+        instant's derivative (docs/differentiation.md, "Slip reversals in contact"). The
+        error-controlled sensitivity solve therefore rejects such steps
+        (``dynamics._equations.slip_step_fraction``).
+
+        Returns:
+            ``None`` where the force has no such band (no friction; LuGre, whose reversal goes
+            through its integrated bristle state), else (V, u), m/s: the band is |v_T| <= V and u
+            the width over which the force turns (a step inside the band may change v_T by at
+            most ``dynamics._equations.SLIP_RESOLUTION`` u).
+        """
+        return None
+
     @abc.abstractmethod
     def force(
         self,

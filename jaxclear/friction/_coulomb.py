@@ -37,6 +37,15 @@ class Coulomb(AbstractStatelessFrictionLaw):
                 fix="pass v_ε > 0 in m/s, or None for Smoothing.velocity_width",
             )
 
+    def slip_transition(self, smoothing: Smoothing) -> tuple[Array, Array]:
+        """(3 v_ε, v_ε): tanh(v/v_ε) turns over within |v| <= 3 v_ε (tanh 3 = 0.995), over a width
+        v_ε (``AbstractFrictionLaw.slip_transition``)."""
+        tolerance = (
+            smoothing.velocity_width if self.velocity_tolerance is None else self.velocity_tolerance
+        )
+        width = jnp.asarray(tolerance, dtype=float)
+        return 3.0 * width, width
+
     def force(
         self,
         slip_velocity: Float[Array, ""],
@@ -98,6 +107,12 @@ class ModifiedCoulomb(AbstractStatelessFrictionLaw):
             self.upper_velocity - self.lower_velocity,
             fix="pass upper_velocity (v1) > lower_velocity (v0)",
         )
+
+    def slip_transition(self, smoothing: Smoothing) -> tuple[Array, Array]:
+        """(v1 + w, v1 − v0): the force turns over within |v| <= v1 + w, over the ramp's width
+        v1 − v0 (``AbstractFrictionLaw.slip_transition``)."""
+        upper = jnp.asarray(self.upper_velocity, dtype=float)
+        return upper + smoothing.velocity_width, upper - self.lower_velocity
 
     def dynamic_correction(
         self, speed: Float[Array, "..."], smoothing: Smoothing

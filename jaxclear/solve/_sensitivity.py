@@ -62,6 +62,7 @@ from ..dynamics._equations import (
     implicit_stage,
     memory_decay_rates,
     memory_offset_shift,
+    slip_step_fraction,
     vector_field,
 )
 from ..dynamics._equations import initial_state as dynamics_initial_state
@@ -182,6 +183,74 @@ def tangent_norm(size: int, p: int, with_tangents: bool = True):
         return jnp.max(rms) if with_tangents else rms[0]
 
     return norm
+
+
+SLIP_STEP_FLOOR = 1e-13
+"""s: the shortest step ``SlipResolving`` asks for (below it a step is taken as it is)."""
+
+
+class SlipResolving(diffrax.AbstractAdaptiveStepSizeController):
+    """A step-size controller that also rejects steps jumping a friction law's slip reversal.
+
+    Where a clearance joint in contact reverses its slip, a Coulomb-type friction force turns
+    from +μ F_N to −μ F_N across a narrow band of slip velocities, crossed in tens of nanoseconds.
+    A step that jumps the band with no stage inside it integrates the state within its tolerance
+    (the force is right on either side) but drops the tangents' kick there, the force's jump
+    times the crossing instant's derivative; no error estimate sees it, since no stage sampled
+    it. This controller rejects a step whose fraction from ``slip_step_fraction`` is below 1 and
+    retries it at 0.9 of that fraction (at most the wrapped controller's own proposal); inside
+    the band the wrapped controller's error norm, which covers the tangents, takes over.
+    The wrapped controller's state is kept as it was at a step rejected here.
+
+    Attributes:
+        controller: the wrapped adaptive controller (``PIDController``).
+        size: the state's length N (the augmented state is [y, S_1, ..., S_p]).
+    """
+
+    controller: diffrax.AbstractAdaptiveStepSizeController
+    size: int = eqx.field(static=True)
+
+    @property
+    def rtol(self):
+        return self.controller.rtol
+
+    @property
+    def atol(self):
+        return self.controller.atol
+
+    @property
+    def norm(self):  # pyright: ignore[reportIncompatibleVariableOverride]
+        return self.controller.norm
+
+    def wrap(self, direction):
+        return dataclasses.replace(self, controller=self.controller.wrap(direction))
+
+    def init(self, terms, t0, t1, y0, dt0, args, func, error_order):
+        return self.controller.init(terms, t0, t1, y0, dt0, args, func, error_order)
+
+    def adapt_step_size(
+        self, t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+    ):
+        keep, next_t0, next_t1, jump, state, result = self.controller.adapt_step_size(
+            t0, t1, y0, y1_candidate, args, y_error, error_order, controller_state
+        )
+        step = t1 - t0
+        fraction = slip_step_fraction(args.mechanism, y0[: self.size], y1_candidate[: self.size])
+        fraction = jax.lax.stop_gradient(fraction)
+        reject = (fraction < 1) & (step > SLIP_STEP_FLOOR)
+        retry = t0 + jnp.maximum(0.9 * fraction * step, SLIP_STEP_FLOOR)
+        retry = jnp.where(keep, retry, jnp.minimum(retry, next_t1))
+        state = jax.tree_util.tree_map(
+            lambda old, new: jnp.where(reject, old, new), controller_state, state
+        )
+        return (
+            keep & ~reject,
+            jnp.where(reject, t0, next_t0),
+            jnp.where(reject, retry, next_t1),
+            jump & ~reject,
+            state,
+            result,
+        )
 
 
 class TangentTracking(AbstractWrappingSolver):
@@ -344,6 +413,8 @@ def sensitivity_core(
     controller = dataclasses.replace(
         controller, atol=atol, norm=tangent_norm(size, p, config.sensitivity_error_control)
     )
+    if config.sensitivity_error_control and config.sensitivity_slip_steps:
+        controller = SlipResolving(controller, size)
     saveat = diffrax.SaveAt(
         subs=[diffrax.SubSaveAt(ts=ts), diffrax.SubSaveAt(t1=True)], solver_state=track_extremes
     )

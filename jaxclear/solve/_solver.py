@@ -88,6 +88,11 @@ class SolverConfig(eqx.Module):
             ~3.5 µs steps in free flight, it took 10 958 steps over a revolution of the
             one-joint Coulomb case at rtol 1e-8 against Tsit5's 18 581, as accurate;
             docs/differentiation.md).
+        sensitivity_slip_steps: that sensitivity solve also rejects a step that jumps a
+            Coulomb-type friction law's slip reversal in contact without a stage inside the band
+            where the force turns over: the state's error stays small there, but the tangents lose
+            the force jump's kick (``solve._sensitivity.SlipResolving``; docs/differentiation.md,
+            "Slip reversals in contact"). ``False``: for checks only.
     """
 
     method: str = eqx.field(static=True, default="kvaerno5")
@@ -105,6 +110,7 @@ class SolverConfig(eqx.Module):
     sensitivity_error_control: bool = eqx.field(static=True, default=True)
     sensitivity_rtol: float | None = eqx.field(static=True, default=None)
     sensitivity_method: str | None = eqx.field(static=True, default=None)
+    sensitivity_slip_steps: bool = eqx.field(static=True, default=True)
 
     def __check_init__(self):
         if self.method not in METHODS:
