@@ -2,7 +2,7 @@
 
 Usage:
     python benchmarks/gradient_defaults.py [--windows 0.3,0.5,1,2,3] [--repeats 3]
-        [--parameters 1,4,16] [--no-discrete] [--no-cost] [--no-accuracy]
+        [--parameters 1,4,16] [--no-discrete] [--no-cost] [--no-accuracy] [--no-fit]
 
 The case of issue 22: the benchmark slider–crank at 5000 rpm with one clearance joint B
 (Lankarani–Nikravesh contact, restitution 0.9, modified Coulomb μ = 0.01, gravity on), journal
@@ -19,14 +19,24 @@ Printed per window:
 Then (unless ``--no-cost``) the cost over the longest window: warm wall time of the primal solve,
 of ``jax.jacfwd`` and ``jax.grad`` for p = 1, 4, 16 parameters (p distinct scalar leaves of the mechanism, the journal radius first, each scaled by a factor of
 its own), their ratios to the primal in the same process, first-call (compile) times,
-and the process's peak RSS. Public API only; prints figures, asserts nothing.
+and the process's peak RSS.
+
+Then (unless ``--no-fit``) the wall time of the README's ``jaxclear fit`` example (issue 22's
+fitting target), a whole process with an empty compilation cache (a temporary
+``JAXCLEAR_CACHE_DIR``), and its estimate. Public API only; prints figures, asserts nothing.
 """
 
 import argparse
 import importlib.metadata
+import json
+import os
 import resource
+import shutil
 import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import equinox as eqx
 import jax
@@ -161,6 +171,45 @@ def cost(window, sizes, repeats):
     print(f"peak RSS of this process: {peak:.0f} MB")
 
 
+README_FIT = [
+    "fit",
+    "tests/reference/data/ident_5000rpm_B.csv",
+    "examples/fit_clearance_B.toml",
+    "--fit",
+    "B.clearance=5e-4:1e-4:8e-4",
+]
+"""The README's fit example (true clearance 0.3 mm, start 0.5 mm), run from the repository root."""
+
+
+def fit_wall():
+    """Wall time of the README's fit example in a fresh process with an empty compilation cache."""
+    root = Path(__file__).resolve().parent.parent
+    command = shutil.which("jaxclear", path=str(Path(sys.executable).parent)) or "jaxclear"
+    with tempfile.TemporaryDirectory() as scratch:
+        env = {**os.environ, "JAXCLEAR_CACHE_DIR": str(Path(scratch) / "cache")}
+        out = Path(scratch) / "fit-B"
+        start = time.perf_counter()
+        done = subprocess.run(
+            [command, *README_FIT, "--out", str(out)],
+            cwd=root,
+            env=env,
+            capture_output=True,
+            text=True,
+        )
+        wall = time.perf_counter() - start
+        print(
+            f"\njaxclear fit (README example, empty compilation cache): {wall:.1f} s wall, ", end=""
+        )
+        print(f"exit code {done.returncode}")
+        if (out / "fit.json").exists():
+            record = json.loads((out / "fit.json").read_text())
+            print(
+                f"success {record.get('success')}; parameters {json.dumps(record.get('parameters'))}"
+            )
+        else:
+            print(done.stderr.strip().splitlines()[-1] if done.stderr.strip() else "no fit.json")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--windows", default="0.3,0.5,1,2,3")
@@ -171,6 +220,7 @@ def main():
     parser.add_argument(
         "--no-accuracy", action="store_true", help="the cost over the longest window only"
     )
+    parser.add_argument("--no-fit", action="store_true", help="leave the fit example out")
     args = parser.parse_args()
     print(header())
     windows = [float(w) for w in args.windows.split(",")]
@@ -178,6 +228,8 @@ def main():
         accuracy(windows, not args.no_discrete)
     if not args.no_cost:
         cost(max(windows), [int(p) for p in args.parameters.split(",")], args.repeats)
+    if not args.no_fit:
+        fit_wall()
 
 
 if __name__ == "__main__":

@@ -73,7 +73,7 @@ def test_midpoint_sample_follows_the_dense_output(runs):
 
 
 RIDING_WINDOW = 0.8e-3
-"""s: ends inside an impact of joint B with a step of a few µs for both methods below (a window
+"""s: ends inside an impact of joint B with a step of a µs or more for both methods below (a window
 whose last step is clipped to ~1e-8 s, as 1 ms is for ``imex``, would not test the midpoint)."""
 
 MIDPOINT_TOLERANCE = {"imex": 1e-3, "lawson-tsit5": 1e-4}
@@ -143,7 +143,9 @@ def test_riding_midpoint_sample_follows_the_dense_output(riding):
     on, at_mid = riding["on"], riding["at_mid"]
     tolerance = MIDPOINT_TOLERANCE[riding["solver"]]
     mid = on.extremes.recent[0]
-    assert RIDING_WINDOW - riding["t_mid"] > 1e-6  # a step of a few µs, not a clipped one
+    # a step of a µs or more, not a clipped one (~1e-8 s); measured with imex 2.6 µs, and 1.2 µs
+    # with XLA's fusion emitters off (rounding-level changes move the step sequence)
+    assert RIDING_WINDOW - riding["t_mid"] > 2e-7
     scale = np.max(np.abs(np.asarray(on.qdd)))
     np.testing.assert_allclose(mid.accelerations, at_mid.qdd[9], rtol=0, atol=tolerance * scale)
     torque_scale = np.max(np.abs(np.asarray(on.input_torque)))
