@@ -5,7 +5,9 @@ from jaxclear.cli._common import FAST_COMPILE_FLAG
 # XLA reads XLA_FLAGS once, when JAX's backend starts (the first array): set here, before any test
 # makes one, in each pytest-xdist worker (and inherited by the command-line tests' subprocesses).
 # The CPU fusion emitters off: the suite's time is mostly compilation, and this flag, the
-# command's own ``fast_compile`` default, cut it from 1517 s to 855 s on a 2-core machine.
+# command's own ``fast_compile`` default, cut it from 1517 s to 729 s on the 2-core machine
+# (2026-12-03). A suite-wide JAX persistent compilation cache on top was slower, 977 s: few
+# programs repeat across tests, and every compile over a second was written to disk.
 if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
     os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAG}".strip()
 
@@ -16,17 +18,17 @@ jax.config.update("jax_numpy_rank_promotion", "raise")
 
 LONGEST_FIRST = (
     "test_notebooks_studies.py",
-    "test_notebooks.py",
-    "test_transforms.py",
-    "test_fast_paths.py",
-    "test_identify.py",
     "test_sensitivity.py",
+    "test_notebooks.py",
+    "test_identify.py",
+    "test_transforms.py",
     "test_ensemble.py",
+    "test_fast_paths.py",
+    "test_optimize.py",
     "test_cli.py",
     "test_executable_cache.py",
     "test_cli_ensemble.py",
     "test_extremes_sampling.py",
-    "test_optimize.py",
     "test_startup.py",
     "test_statistics.py",
     "test_cli_folders.py",

@@ -259,7 +259,11 @@ def test_chunks_spread_over_two_devices_give_the_same_members(ensemble, tmp_path
         "points": POINTS,
         "chunk": CHUNK,
     }
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    # the suite's own flags (tests/conftest.py: the fusion emitters off) and two CPU devices
+    env = dict(
+        os.environ,
+        XLA_FLAGS=f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2",
+    )
 
     def run():
         done = subprocess.run(

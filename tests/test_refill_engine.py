@@ -111,7 +111,11 @@ def test_refilled_shares_run_at_once_on_two_devices(runs):
     constraint solves are unrolled, so no LAPACK call sits in their loops; with the 9-row solve
     on LAPACK, such programs deadlocked in a Monte Carlo of 256 members). Each member equals its
     solve on one device. The subprocess's timeout ends a hang."""
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    # the suite's own flags (tests/conftest.py: the fusion emitters off) and two CPU devices
+    env = dict(
+        os.environ,
+        XLA_FLAGS=f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2",
+    )
     tests = str(Path(__file__).parent)
     done = subprocess.run(
         [sys.executable, "-c", TWO_DEVICES, tests],
