@@ -1,6 +1,4 @@
-import os
-
-from jaxclear.cli._common import FAST_COMPILE_FLAG
+from jaxclear.cli._common import apply_fast_compile
 
 # XLA reads XLA_FLAGS once, when JAX's backend starts (the first array): set here, before any test
 # makes one, in each pytest-xdist worker (and inherited by the command-line tests' subprocesses).
@@ -8,8 +6,8 @@ from jaxclear.cli._common import FAST_COMPILE_FLAG
 # command's own ``fast_compile`` default, cut it from 1517 s to 729 s on the 2-core machine
 # (2026-12-03). A suite-wide JAX persistent compilation cache on top was slower, 977 s: few
 # programs repeat across tests, and every compile over a second was written to disk.
-if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {FAST_COMPILE_FLAG}".strip()
+# The command's own setter: a user's XLA_FLAGS that already decide the flag are left alone.
+apply_fast_compile(True)
 
 import jax  # noqa: E402
 

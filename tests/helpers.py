@@ -1,6 +1,7 @@
 """Shared test utilities (after lineax/tests/helpers.py)."""
 
 import contextlib
+import os
 
 import equinox as eqx
 import jax
@@ -89,3 +90,11 @@ def without_runtime_type_checks():
         yield
     finally:
         jaxtyping.config.update("jaxtyping_disable", before)
+
+
+def two_cpu_devices_environment():
+    """The environment for a subprocess with two CPU devices: this process's, with
+    ``--xla_force_host_platform_device_count=2`` added to XLA_FLAGS (so the suite's own flags,
+    tests/conftest.py's fusion emitters off, stay)."""
+    flags = f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2"
+    return dict(os.environ, XLA_FLAGS=flags.strip())

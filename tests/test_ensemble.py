@@ -10,7 +10,6 @@ agree only as distributions.
 
 import dataclasses
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -19,6 +18,7 @@ import jax
 import numpy as np
 import pytest
 from cases import one_joint_b
+from helpers import two_cpu_devices_environment
 
 import jaxclear
 from jaxclear.studies import EnsembleError, EnsembleSettings, draw, fit_clearance
@@ -259,11 +259,7 @@ def test_chunks_spread_over_two_devices_give_the_same_members(ensemble, tmp_path
         "points": POINTS,
         "chunk": CHUNK,
     }
-    # the suite's own flags (tests/conftest.py: the fusion emitters off) and two CPU devices
-    env = dict(
-        os.environ,
-        XLA_FLAGS=f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2",
-    )
+    env = two_cpu_devices_environment()
 
     def run():
         done = subprocess.run(

@@ -7,7 +7,6 @@ ensemble's members against their own ``simulate``, resuming across engines, repl
 """
 
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -19,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from cases import one_joint_b
+from helpers import two_cpu_devices_environment
 
 import jaxclear
 from jaxclear.studies import EnsembleError, EnsembleSettings, map_members
@@ -111,11 +111,7 @@ def test_refilled_shares_run_at_once_on_two_devices(runs):
     constraint solves are unrolled, so no LAPACK call sits in their loops; with the 9-row solve
     on LAPACK, such programs deadlocked in a Monte Carlo of 256 members). Each member equals its
     solve on one device. The subprocess's timeout ends a hang."""
-    # the suite's own flags (tests/conftest.py: the fusion emitters off) and two CPU devices
-    env = dict(
-        os.environ,
-        XLA_FLAGS=f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=2",
-    )
+    env = two_cpu_devices_environment()
     tests = str(Path(__file__).parent)
     done = subprocess.run(
         [sys.executable, "-c", TWO_DEVICES, tests],
